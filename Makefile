@@ -1,0 +1,39 @@
+# The DANAE book: two commands do everything.
+#   make book   -> creates .venv if missing, executes every notebook, writes _build/html/index.html
+#   make test   -> unit tests plus every notebook under nbmake (fast mode), same venv
+# Real data: export DANAE_DATA=/path/to/data (holding oxiod/ and/or ucs/); otherwise the simulator stands in.
+
+PYTHON ?= python3
+VENV   ?= .venv
+BIN    := $(VENV)/bin
+STAMP  := $(VENV)/.installed
+JOBS   ?= 2
+
+.PHONY: book test unit notebooks lab bench clean
+
+$(STAMP): requirements.txt pyproject.toml
+	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
+	$(BIN)/python -m pip install --quiet --upgrade pip
+	$(BIN)/python -m pip install --quiet -r requirements.txt
+	$(BIN)/python -m pip install --quiet --no-deps --no-build-isolation -e .
+	touch $(STAMP)
+
+book: $(STAMP)
+	rm -rf _build/html _build/.doctrees _build/jupyter_execute
+	$(BIN)/jupyter-book build . -W -n --keep-going
+	@echo "Book written to _build/html/index.html"
+
+test: $(STAMP)
+	DANAE_FAST=$${DANAE_FAST:-1} $(BIN)/python -m pytest -n $(JOBS) tests notebooks --nbmake --nbmake-timeout=1200
+
+unit: $(STAMP)
+	$(BIN)/python -m pytest -n $(JOBS) tests
+
+lab: $(STAMP)
+	$(BIN)/jupyter lab notebooks
+
+bench: $(STAMP)
+	$(BIN)/python benchmarks/run.py
+
+clean:
+	rm -rf _build .pytest_cache .hypothesis

@@ -1,0 +1,67 @@
+"""Angle conventions used everywhere in the book (stated once, here).
+
+* Frames: body frame of the sensor; reference (navigation) frame is the ground-truth
+  system's world frame. A quaternion ``q`` (scalar-last ``[x, y, z, w]``, scipy's order)
+  rotates body-frame vectors into the reference frame.
+* Euler angles: aerospace, intrinsic Z-Y'-X'' (yaw psi, then pitch theta, then roll phi),
+  exactly scipy's ``Rotation.as_euler("ZYX")``. Arrays in this package are always ordered
+  ``(roll, pitch, yaw)`` in radians, i.e. the reverse of scipy's output.
+* Ranges: roll and yaw in [-pi, pi), pitch in [-pi/2, pi/2].
+* Angle errors are wrapped to [-pi, pi) with :func:`wrap` unless a caller asks for raw
+  (unwrapped) differences.
+"""
+from __future__ import annotations
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+from scipy.spatial.transform import Rotation
+
+ANGLES: tuple[str, str, str] = ("roll", "pitch", "yaw")
+"""Names of the three Euler angles, in the order used by every array in the package."""
+
+SYMBOLS: dict[str, str] = {"roll": r"$\phi$", "pitch": r"$\theta$", "yaw": r"$\psi$"}
+"""LaTeX symbols used by the paper for each angle."""
+
+
+def wrap(angle: ArrayLike) -> NDArray[np.float64]:
+    """Wrap angles [rad] to the half-open interval [-pi, pi).
+
+    >>> float(wrap(np.pi))
+    -3.141592653589793
+    """
+    a = np.asarray(angle, dtype=float)
+    return (a + np.pi) % (2.0 * np.pi) - np.pi
+
+
+def angle_diff(a: ArrayLike, b: ArrayLike, wrapped: bool = True) -> NDArray[np.float64]:
+    """Return ``a - b`` [rad], wrapped to [-pi, pi) unless ``wrapped=False``."""
+    d = np.asarray(a, dtype=float) - np.asarray(b, dtype=float)
+    return wrap(d) if wrapped else d
+
+
+def quat_to_euler(quat_xyzw: ArrayLike) -> NDArray[np.float64]:
+    """Convert quaternions ``(N, 4)`` scalar-last to Euler ``(N, 3)`` (roll, pitch, yaw) [rad].
+
+    Uses scipy's ``Rotation.as_euler("ZYX")`` (intrinsic yaw-pitch-roll) and reorders the
+    columns to (roll, pitch, yaw). Quaternions need not be unit norm (scipy normalises);
+    a zero quaternion raises ``ValueError``.
+    """
+    q = np.atleast_2d(np.asarray(quat_xyzw, dtype=float))
+    ypr = Rotation.from_quat(q).as_euler("ZYX")
+    return ypr[:, ::-1].copy()
+
+
+def euler_to_quat(euler_rpy: ArrayLike) -> NDArray[np.float64]:
+    """Convert Euler ``(N, 3)`` (roll, pitch, yaw) [rad] to scalar-last quaternions ``(N, 4)``.
+
+    Inverse of :func:`quat_to_euler` (intrinsic ZYX). The sign is chosen with ``w >= 0``.
+    """
+    e = np.atleast_2d(np.asarray(euler_rpy, dtype=float))
+    q = Rotation.from_euler("ZYX", e[:, ::-1]).as_quat()
+    q[q[:, 3] < 0] *= -1.0
+    return q
+
+
+def unwrap(angle: ArrayLike) -> NDArray[np.float64]:
+    """Remove 2*pi jumps along the first axis (numpy ``unwrap``), e.g. for plotting yaw."""
+    return np.unwrap(np.asarray(angle, dtype=float), axis=0)
