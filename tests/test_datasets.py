@@ -1,0 +1,116 @@
+"""Data-directory lookup: real OxIOD/UCS layouts, fast mode, and the simulated stand-in."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from danae_lite import DataError, datasets
+from danae_lite.datasets import Experiment, load_experiment, oxiod_root, ucs_file
+from danae_lite.oxiod import load_recording
+
+from conftest import write_ucs
+
+
+@pytest.fixture(autouse=True)
+def no_env(monkeypatch):
+    monkeypatch.delenv("DANAE_DATA", raising=False)
+    monkeypatch.delenv("DANAE_FAST", raising=False)
+
+
+def test_real_oxiod_split(tmp_oxiod, capsys):
+    exp = load_experiment("oxiod", tmp_oxiod.data_dir, fast=False)
+    assert isinstance(exp, Experiment) and (exp.name, exp.data) == ("oxiod", "real")
+    assert [r.name for r in exp.train] == ["handheld/data1/imu3", "handheld/data1/imu4", "handheld/data1/imu7"]
+    assert [r.name for r in exp.test] == ["handheld/data1/imu2"]
+    np.testing.assert_array_equal(exp.test[0].quat, tmp_oxiod.vi[2][:, 5:9])
+    assert str(tmp_oxiod.root) in exp.note and "test imu2" in exp.note and "slow-walking" in exp.note
+    assert capsys.readouterr().out.strip() == exp.note
+
+
+def test_real_oxiod_from_environment(tmp_oxiod, monkeypatch, capsys):
+    monkeypatch.setenv("DANAE_DATA", str(tmp_oxiod.data_dir))
+    exp = load_experiment("oxiod", fast=False, verbose=False)
+    assert exp.data == "real" and capsys.readouterr().out == ""
+    assert oxiod_root() == tmp_oxiod.root
+
+
+def test_fast_mode_truncates_real_oxiod(tmp_oxiod, monkeypatch):
+    monkeypatch.setattr(datasets, "FAST_SAMPLES", 50)
+    exp = load_experiment("oxiod", tmp_oxiod.data_dir, fast=True, verbose=False)
+    full = load_recording(tmp_oxiod.syn / "imu3.csv")
+    rec = exp.train[0]
+    assert [len(r) for r in exp.train + exp.test] == [50, 50, 50, 50]
+    np.testing.assert_array_equal(rec.acc, full.acc[:50])
+    np.testing.assert_array_equal(rec.meta["gravity"], full.meta["gravity"][:50])  # per-sample meta too
+    assert "fast mode: first 50 samples" in exp.note
+
+
+def test_partial_oxiod_folder_raises(tmp_oxiod):
+    (tmp_oxiod.syn / "vi7.csv").unlink()
+    (tmp_oxiod.syn / "imu4.csv").unlink()
+    with pytest.raises(DataError, match=r"oxiod exists but lacks .*imu4\.csv, .*vi7\.csv"):
+        load_experiment("oxiod", tmp_oxiod.data_dir, verbose=False)
+
+
+def test_real_ucs_split(tmp_path, capsys):
+    path = write_ucs(tmp_path / "ucs" / "full_dataset" / "imu_adis.txt")
+    assert ucs_file(tmp_path) == path
+    exp = load_experiment("ucs", tmp_path, fast=True)
+    assert (exp.name, exp.data) == ("ucs", "real")
+    assert [len(r) for r in exp.train + exp.test] == [240, 60]  # fast mode keeps UCS whole
+    assert str(path) in exp.note and "80%" in exp.note
+    assert capsys.readouterr().out.strip() == exp.note
+
+
+def test_ucs_folder_without_file_raises(tmp_path):
+    (tmp_path / "ucs").mkdir()
+    with pytest.raises(DataError, match=r"ucs exists but lacks .*full_dataset[/\\]imu_adis\.txt"):
+        load_experiment("ucs", tmp_path, verbose=False)
+
+
+def test_helpers_return_none_without_data(tmp_path):
+    assert oxiod_root(tmp_path) is None and ucs_file(tmp_path) is None
+    assert oxiod_root() is None and ucs_file() is None  # DANAE_DATA unset
+
+
+def test_simulated_oxiod_when_no_data(capsys):
+    from danae_lite.simulate import simulate
+
+    exp = load_experiment("oxiod", fast=True, seed=3)
+    assert (exp.name, exp.data) == ("oxiod", "simulated")
+    assert [r.name for r in exp.test] == ["sim-handheld-0"]
+    assert [r.name for r in exp.train] == ["sim-handheld-1", "sim-handheld-2", "sim-handheld-3"]
+    assert [r.meta["seed"] for r in exp.test + exp.train] == [3, 4, 5, 6]
+    assert all(len(r) == 6000 and r.fs == 100.0 for r in exp.train + exp.test)  # 60 s in fast mode
+    reference = simulate("handheld", duration=60.0, seed=4)
+    np.testing.assert_array_equal(exp.train[0].gyro, reference.gyro)
+    assert "DANAE_DATA unset" in exp.note and "handheld simulator stands in" in exp.note
+    assert capsys.readouterr().out.strip() == exp.note
+
+
+def test_simulated_full_length_outside_fast_mode():
+    exp = load_experiment("oxiod", fast=False, verbose=False)
+    assert len(exp.test[0]) == 18_000  # the scenario default: 180 s at 100 Hz
+
+
+def test_simulated_ucs_in_empty_data_dir(tmp_path):
+    exp = load_experiment("ucs", tmp_path, fast=True, verbose=False)
+    assert (exp.name, exp.data) == ("ucs", "simulated")
+    (train,), (test,) = exp.train, exp.test
+    assert (len(train), len(test), train.fs) == (4800, 1200, 10.0)  # 600 s at 10 Hz, 80/20
+    from danae_lite.simulate import simulate
+
+    full = simulate("underwater", duration=600.0, seed=0)
+    np.testing.assert_array_equal(np.r_[train.acc, test.acc], full.acc)
+    np.testing.assert_array_equal(test.meta["true_acc"], full.meta["true_acc"][4800:])
+    assert f"under {tmp_path}" in exp.note and "underwater simulator" in exp.note
+
+
+def test_unknown_experiment():
+    with pytest.raises(ValueError, match="unknown experiment 'euroc'"):
+        load_experiment("euroc")
+
+
+def test_missing_explicit_data_dir(tmp_path):
+    with pytest.raises(FileNotFoundError):
+        load_experiment("oxiod", tmp_path / "nowhere")
