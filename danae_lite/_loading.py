@@ -118,18 +118,3 @@ def parse_numeric(path: Path, raw: bytes, ncols: int, *, skip: int = 0, usecols:
                 raise DataError(f"{_where(path, skip + r + 1, c, names)}: expected a finite number, "
                                 f"got {_describe(cell)}")
     return out
-
-
-def slice_recording(rec: Recording, start: int | None, stop: int | None, name: str | None = None) -> Recording:
-    """Like :meth:`Recording.slice`, but also slices the per-sample arrays in ``meta``.
-
-    A ``meta`` entry is per-sample when it is an ndarray whose first dimension equals the
-    recording length. Other entries are copied unchanged (indices stored in them keep
-    referring to the full recording; ``meta["offset"]`` gives the slice start).
-    """
-    out = rec.slice(start, stop, name=name)
-    s = slice(start, stop)
-    for key, value in rec.meta.items():
-        if isinstance(value, np.ndarray) and value.ndim >= 1 and value.shape[0] == len(rec):
-            out.meta[key] = value[s]
-    return out

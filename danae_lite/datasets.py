@@ -26,7 +26,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from . import oxiod, ucs
-from ._loading import slice_recording
 from .config import DATA_ENV, data_dir as resolve_data_dir, fast_mode
 from .recording import DataError, Recording
 
@@ -90,7 +89,7 @@ def _real_oxiod(root: Path, fast: bool) -> Experiment:
 
     def load(k: int) -> Recording:
         rec = oxiod.load_recording(syn / f"imu{k}.csv")
-        return slice_recording(rec, 0, FAST_SAMPLES, name=rec.name) if fast and len(rec) > FAST_SAMPLES else rec
+        return rec.slice(0, FAST_SAMPLES, name=rec.name) if fast and len(rec) > FAST_SAMPLES else rec
 
     train, test = [load(k) for k in OXIOD_TRAIN], [load(k) for k in OXIOD_TEST]
     cut = f" (fast mode: first {FAST_SAMPLES} samples each)" if fast else ""

@@ -111,12 +111,22 @@ class Recording:
         return e
 
     def slice(self, start: int | None = None, stop: int | None = None, name: str | None = None) -> "Recording":
-        """Return samples ``start:stop`` as a new recording (meta gets the offset)."""
+        """Return samples ``start:stop`` as a new recording.
+
+        Per-sample arrays in ``meta`` (ndarrays whose first dimension is ``N``) are sliced too;
+        other entries are copied unchanged. ``meta["offset"]`` accumulates the start index
+        relative to the original recording.
+        """
         s = slice(start, stop)
         idx = range(len(self))[s]
         if len(idx) == 0:
             raise DataError(f"recording {self.name!r}: slice {start}:{stop} is empty (N={len(self)})")
-        meta = dict(self.meta, offset=int(self.meta.get("offset", 0)) + idx.start)
+        n = len(self)
+        meta = {
+            k: (v[s] if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == n else v)
+            for k, v in self.meta.items()
+        }
+        meta["offset"] = int(self.meta.get("offset", 0)) + idx.start
         return Recording(
             name=name or f"{self.name}[{idx.start}:{idx.stop}]",
             source=self.source,

@@ -53,7 +53,7 @@ import numpy as np
 import pandas as pd
 from scipy.spatial.transform import Rotation
 
-from ._loading import line_spans, parse_numeric, read_bytes, slice_recording
+from ._loading import line_spans, parse_numeric, read_bytes
 from .recording import DataError, Recording
 
 G = 9.80665
@@ -240,5 +240,5 @@ def split_train_test(rec: Recording, train_fraction: float = 0.8) -> tuple[Recor
     cut = int(np.floor(len(rec) * train_fraction))
     if cut < 1 or cut >= len(rec):
         raise DataError(f"recording {rec.name!r}: {len(rec)} samples cannot be split at {train_fraction}")
-    return (slice_recording(rec, 0, cut, name=f"{rec.name}[train]"),
-            slice_recording(rec, cut, None, name=f"{rec.name}[test]"))
+    return (rec.slice(0, cut, name=f"{rec.name}[train]"),
+            rec.slice(cut, None, name=f"{rec.name}[test]"))

@@ -65,3 +65,11 @@ def test_slice_keeps_offset():
     assert len(r) == 30 and r.meta["offset"] == 10
     with pytest.raises(DataError, match="empty"):
         make(10).slice(20, 30)
+
+
+def test_slice_cuts_per_sample_meta():
+    r = make(50, meta={"gravity": np.arange(150.0).reshape(50, 3), "rate": 3.0})
+    s = r.slice(5, 15)
+    np.testing.assert_array_equal(s.meta["gravity"], np.arange(150.0).reshape(50, 3)[5:15])
+    assert s.meta["rate"] == 3.0
+    assert s.slice(2, 4).meta["offset"] == 7
