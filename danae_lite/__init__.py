@@ -12,7 +12,9 @@ Modules, each with one job:
 * :mod:`~danae_lite.metrics`    the paper's error metrics and reported numbers
 * :mod:`~danae_lite.windows`    windows and stitching
 * :mod:`~danae_lite.model`, :mod:`~danae_lite.train`  the DANAE networks, training, inference
-* :mod:`~danae_lite.plots`      one plotting style and the paper-figure recreations
+* :mod:`~danae_lite.pipeline`   KF -> one DANAE per angle and seed -> metric tables
+* :mod:`~danae_lite.plots`      one plotting style shared by every chapter
+* :mod:`~danae_lite.book`       the common first cell of every chapter
 """
 from .angles import ANGLES, angle_diff, euler_to_quat, quat_to_euler, wrap
 from .config import data_dir, default_device, fast_mode, seed_everything
