@@ -14,6 +14,8 @@ Modules, each with one job:
 * :mod:`~danae_lite.model`, :mod:`~danae_lite.train`  the DANAE networks, training, inference
 * :mod:`~danae_lite.pipeline`   KF -> one DANAE per angle and seed -> metric tables
 * :mod:`~danae_lite.plots`      one plotting style shared by every chapter
+* :mod:`~danae_lite.figures`    the paper's figures recreated (KF above, DANAE below)
+* :mod:`~danae_lite.cli`        ``python -m danae_lite reproduce``: the whole pipeline from one command
 * :mod:`~danae_lite.book`       the common first cell of every chapter
 """
 from .angles import ANGLES, angle_diff, euler_to_quat, quat_to_euler, wrap

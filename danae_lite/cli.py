@@ -1,0 +1,553 @@
+"""Command line: ``python -m danae_lite reproduce`` runs the paper's experiment end to end.
+
+The command only wires existing steps together: data (:mod:`~danae_lite.datasets`,
+:mod:`~danae_lite.oxiod`, :mod:`~danae_lite.ucs`) -> the paper's KF on every recording ->
+one DANAE per angle and seed (:func:`danae_lite.pipeline.seed_study`) -> the paper's metrics
+(:mod:`~danae_lite.metrics`) -> the paper's figure (:mod:`~danae_lite.figures`). It writes
+into ``--out``:
+
+``metrics.json``
+    ``{"experiment", "data", "train", "test", "seeds", "kf", "danae", "paper", "seconds"}``;
+    ``kf[angle]`` and ``danae[angle]`` hold ``mean_dev``, ``max_dev``, ``rmse`` [rad]
+    (``danae`` also ``rmse_std``), ``paper`` the paper's Table 1 or 2 in the same layout (or
+    null), ``seconds`` the wall time of the KF, of training + inference, and in total.
+``metrics.csv``
+    The same numbers, one row per method and angle, with the paper's values beside them.
+``seed_table.csv``
+    Per test recording, angle, seed and method: the metrics behind the means.
+``figureN_<angle>.png`` / ``figureN_<angle>.csv``
+    The paper's figure recreated (Figure 1 roll for OxIOD, Figure 2 pitch for UCS) and the
+    plotted samples (``time_s``, ``ground_truth``, ``kf``, ``danae``).
+``run.json``
+    How the run was made: the command, the data note, fast mode, training settings, device.
+``models/`` (only with ``--save-models``)
+    One checkpoint per angle and seed (:func:`danae_lite.train.save`).
+
+Metrics are computed on all samples of all test recordings taken together, with errors
+wrapped to [-pi, pi). DANAE numbers use the overlap-average reconstruction (every sample is
+covered) and are means over seeds; ``rmse_std`` is the sample standard deviation of the RMSE
+over seeds (0.0 with one seed).
+
+Exit status: 0 on success, 2 for a usage or data error (a one-line message on stderr),
+130 when interrupted.
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import re
+import shlex
+import sys
+import time
+from collections.abc import Sequence
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from .angles import ANGLES
+from .config import DATA_ENV, FAST_ENV
+from .datasets import FAST_DURATION, FAST_SAMPLES, OXIOD_TEST, OXIOD_TRAIN, TRAIN_FRACTION
+
+__all__ = ["main", "build_parser"]
+
+PROG = "python -m danae_lite"
+EXPERIMENT_ANGLES: dict[str, tuple[str, ...]] = {"oxiod": ("roll", "pitch", "yaw"), "ucs": ("roll", "pitch")}
+"""Angles evaluated per experiment (the paper reports no UCS yaw)."""
+PAPER_EPOCHS: dict[str, int] = {"oxiod": 1, "ucs": 100}
+"""Training epochs stated in the paper."""
+FAST_EPOCHS = 2
+"""Cap on the default epochs in fast mode."""
+FAST_MAX_STEPS = 300
+"""Default cap on optimiser steps per network in fast mode."""
+DEFAULT_SEEDS = (0, 1, 2)
+CSV_COLUMNS = ("method", "angle", "mean_dev", "max_dev", "rmse", "rmse_std",
+               "paper_mean_dev", "paper_max_dev", "paper_rmse")
+_IMU_RE = re.compile(r"imu(\d+)\.csv")
+
+
+class UsageError(Exception):
+    """A mistake in the command line; reported as one line, exit status 2."""
+
+
+# ---------------------------------------------------------------------------------------
+# argument parsing
+# ---------------------------------------------------------------------------------------
+def _positive_int(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {text!r}") from None
+    if value < 1:
+        raise argparse.ArgumentTypeError(f"expected a positive integer, got {value}")
+    return value
+
+
+def _seed(text: str) -> int:
+    try:
+        value = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"expected an integer seed, got {text!r}") from None
+    if value < 0:
+        raise argparse.ArgumentTypeError(f"seeds must be >= 0, got {value}")
+    return value
+
+
+REPRODUCE_EPILOG = f"""\
+data selection:
+  Without --train/--test the experiment's recordings are taken from the data directory
+  (--data-dir, else ${DATA_ENV}) in their original layout:
+    oxiod: <dir>/oxiod/handheld/data1/syn/imuK.csv + viK.csv; train {", ".join(f"imu{k}" for k in OXIOD_TRAIN)}; test {", ".join(f"imu{k}" for k in OXIOD_TEST)}
+    ucs:   <dir>/ucs/full_dataset/imu_adis.txt; first {TRAIN_FRACTION:.0%} train, last {1 - TRAIN_FRACTION:.0%} test
+  With neither --data-dir nor ${DATA_ENV}, the deterministic simulator stands in (the output
+  and metrics.json say "simulated"). A --data-dir without the experiment's folder is an
+  error; a ${DATA_ENV} without it lets the simulator stand in, as in the notebooks.
+
+  --train/--test name files instead (loaded as "real" data):
+    oxiod: imuK.csv files (the Vicon viK.csv beside each is read too) or folders holding
+           them (all imuK.csv inside, by K). A side left out takes its default recordings
+           from the data directory.
+    ucs:   imu_adis.txt files. With --train and --test both given (different files), each
+           file is used whole. With a single file (only --train, only --test, or the same
+           file for both) that file is split: first {TRAIN_FRACTION:.0%} train, last {1 - TRAIN_FRACTION:.0%} test.
+
+fast mode (--fast or {FAST_ENV}=1):
+  OxIOD recordings are cut to their first {FAST_SAMPLES} samples, simulated ones to {FAST_DURATION["handheld"]:g} s (handheld)
+  or {FAST_DURATION["underwater"]:g} s (underwater); the default epochs are capped at {FAST_EPOCHS} and each network at
+  {FAST_MAX_STEPS} optimiser steps (--max-steps overrides).
+
+environment:
+  {DATA_ENV}   data directory used when --data-dir is not given
+  {FAST_ENV}   1/true/yes/on switches fast mode on (same as --fast)
+
+example:
+  {DATA_ENV}=/data {PROG} reproduce --experiment oxiod --seeds 0 1 2 --out runs/oxiod
+"""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """The argument parser of ``python -m danae_lite``."""
+    parser = argparse.ArgumentParser(
+        prog=PROG,
+        description="Reproduce the DANAE paper (KF -> DANAE -> metrics -> figure) from the command line.",
+    )
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    rep = sub.add_parser(
+        "reproduce",
+        help="run the paper's experiment on one dataset and write metrics, figure and data",
+        description=("Run the paper's KF on every recording, train one DANAE per angle and seed on the "
+                     "training recordings, evaluate KF and DANAE on the test recordings with the paper's "
+                     "metrics (rad, errors wrapped to [-pi, pi)), and recreate the paper's figure."),
+        epilog=REPRODUCE_EPILOG,
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    rep.add_argument("--experiment", choices=tuple(EXPERIMENT_ANGLES), default="oxiod",
+                     help="dataset of the experiment: oxiod (roll, pitch, yaw; Table 1, Figure 1) or "
+                          "ucs (roll, pitch; Table 2, Figure 2). Default: oxiod")
+    rep.add_argument("--data-dir", metavar="DIR", default=None,
+                     help=f"folder holding oxiod/ and/or ucs/ in their original layout. Default: ${DATA_ENV}; "
+                          "without either the simulator stands in")
+    rep.add_argument("--train", metavar="FILE", nargs="+", default=None,
+                     help="training recordings (see 'data selection' below). Default: the experiment's "
+                          "training recordings in the data directory")
+    rep.add_argument("--test", metavar="FILE", nargs="+", default=None,
+                     help="test recordings (see 'data selection' below). Default: the experiment's test "
+                          "recordings in the data directory")
+    rep.add_argument("--seeds", metavar="SEED", nargs="+", type=_seed, default=list(DEFAULT_SEEDS),
+                     help="training seeds; one network per angle and seed. Default: 0 1 2")
+    rep.add_argument("--epochs", metavar="N", type=_positive_int, default=None,
+                     help=f"training epochs per network. Default: the paper's ({PAPER_EPOCHS['oxiod']} for oxiod, "
+                          f"{PAPER_EPOCHS['ucs']} for ucs), at most {FAST_EPOCHS} in fast mode")
+    rep.add_argument("--max-steps", metavar="N", type=_positive_int, default=None,
+                     help=f"cap on optimiser steps per network. Default: {FAST_MAX_STEPS} in fast mode, "
+                          "no cap otherwise")
+    rep.add_argument("--fast", action="store_true", default=None,
+                     help=f"fast mode: shorter recordings and fewer steps (see below). Default: ${FAST_ENV}, else off")
+    rep.add_argument("--device", metavar="DEV", default=None,
+                     help="torch device for training, e.g. cpu, cuda, cuda:1. Default: cuda when available, else cpu")
+    rep.add_argument("--threads", metavar="N", type=_positive_int, default=None,
+                     help="torch CPU threads. Default: half the usable cores, 1 to 4")
+    rep.add_argument("--save-models", action="store_true",
+                     help="also write one checkpoint per angle and seed to OUT/models/. Default: off")
+    rep.add_argument("--out", metavar="DIR", default=None,
+                     help="output folder (created if needed; files in it are overwritten). "
+                          "Default: runs/reproduce-<experiment>")
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Entry point of ``python -m danae_lite``; returns the exit status."""
+    parser = build_parser()
+    try:
+        args = parser.parse_args(argv)
+    except SystemExit as stop:  # --help, or an argparse usage error (already printed)
+        return stop.code if isinstance(stop.code, int) else (0 if stop.code is None else 2)
+    if args.command is None:
+        parser.print_help(sys.stderr)
+        return 2
+    args.argv = list(sys.argv[1:] if argv is None else argv)
+    from .recording import DataError
+    from .train import CheckpointError
+
+    try:
+        return reproduce(args)
+    except (UsageError, DataError, CheckpointError, FileNotFoundError, NotADirectoryError,
+            IsADirectoryError, PermissionError) as err:
+        print(f"{PROG} {args.command}: error: {_one_line(err)}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"{PROG} {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+def _one_line(err: BaseException) -> str:
+    text = " ".join(str(err).split())
+    if isinstance(err, OSError) and err.filename is not None and str(err.filename) not in text:
+        text = f"{err.filename}: {text}"
+    return text or type(err).__name__
+
+
+# ---------------------------------------------------------------------------------------
+# data
+# ---------------------------------------------------------------------------------------
+def _oxiod_files(items: Sequence[str], flag: str) -> list[Path]:
+    """Expand ``--train``/``--test`` items: a file stays, a folder gives its imuK.csv files by K."""
+    out: list[Path] = []
+    for item in items:
+        p = Path(item).expanduser()
+        if p.is_dir():
+            found = sorted((int(m.group(1)), q) for q in p.iterdir() if (m := _IMU_RE.fullmatch(q.name)))
+            if not found:
+                raise UsageError(f"{flag} {p}: folder holds no OxIOD recordings (imuK.csv with viK.csv beside it)")
+            out.extend(q for _, q in found)
+        elif not p.is_file():
+            raise UsageError(f"{flag} {p}: no such file")
+        else:
+            out.append(p)
+    return out
+
+
+def _load_oxiod(paths: Sequence[Path], fast: bool) -> list[Any]:
+    """Load OxIOD files; fast mode keeps the first FAST_SAMPLES samples of each."""
+    from . import oxiod
+
+    recs = []
+    for p in paths:
+        rec = oxiod.load_recording(p)
+        if fast and len(rec) > FAST_SAMPLES:
+            rec = rec.slice(0, FAST_SAMPLES, name=rec.name)
+        recs.append(rec)
+    return recs
+
+
+def _ucs_path(items: Sequence[str], flag: str) -> list[Path]:
+    out = []
+    for item in items:
+        p = Path(item).expanduser()
+        if p.is_dir():
+            raise UsageError(f"{flag} {p}: is a folder; give the UCS file itself (full_dataset/imu_adis.txt)")
+        if not p.is_file():
+            raise UsageError(f"{flag} {p}: no such file")
+        out.append(p)
+    return out
+
+
+def _unique_names(train: list[Any], test: list[Any]) -> tuple[list[Any], list[Any]]:
+    """Give distinct recordings distinct names (the KF estimates are keyed by name)."""
+    seen: dict[str, Any] = {}
+    out: list[list[Any]] = [[], []]
+    for side, recs in enumerate((train, test)):
+        for rec in recs:
+            other = seen.get(rec.name)
+            if other is not None and other is not rec:
+                path = rec.meta.get("imu_path") or rec.meta.get("path")
+                rec = rec.slice(None, None, name=f"{rec.name} ({path or len(seen)})")
+            seen[rec.name] = rec
+            out[side].append(rec)
+    return out[0], out[1]
+
+
+def load_data(args: argparse.Namespace, fast: bool) -> Any:
+    """Resolve the experiment's recordings from the arguments; returns a datasets.Experiment."""
+    from . import datasets, ucs
+    from .config import data_dir as resolve_data_dir
+
+    name = args.experiment
+    base = resolve_data_dir(args.data_dir)  # FileNotFoundError for a missing folder
+    if args.data_dir is not None and args.train is None and args.test is None:
+        folder = base / name
+        if not folder.is_dir():
+            expected = (folder / "handheld" / "data1" / "syn" / "imuK.csv" if name == "oxiod"
+                        else folder / datasets.UCS_RELPATH)
+            raise UsageError(f"--data-dir {base}: no {name}/ folder with recordings (expected {expected}); "
+                             "omit --data-dir to let the simulator stand in")
+    if args.train is None and args.test is None:
+        return datasets.load_experiment(name, base, fast=fast, verbose=False)
+
+    if name == "ucs":
+        train_p = _ucs_path(args.train, "--train") if args.train else []
+        test_p = _ucs_path(args.test, "--test") if args.test else []
+        single = {p.resolve() for p in train_p + test_p}
+        if len(single) == 1 and (not train_p or not test_p or len(train_p) == len(test_p) == 1):
+            path = train_p[0] if train_p else test_p[0]
+            tr, te = ucs.split_train_test(ucs.load_recording(path), datasets.TRAIN_FRACTION)
+            note = (f"UCS file {path}: first {datasets.TRAIN_FRACTION:.0%} ({len(tr)} samples) train, "
+                    f"last {1 - datasets.TRAIN_FRACTION:.0%} ({len(te)} samples) test.")
+            return datasets.Experiment("ucs", "real", [tr], [te], note)
+        if not train_p or not test_p:
+            flag = "--train" if train_p else "--test"
+            raise UsageError(f"{flag} names {len(train_p or test_p)} UCS files but the other side is missing; "
+                             "give one file (split 80/20) or both --train and --test")
+        train = [ucs.load_recording(p, name=f"ucs/{p.parent.name}/{p.stem}") for p in train_p]
+        test = [ucs.load_recording(p, name=f"ucs/{p.parent.name}/{p.stem}") for p in test_p]
+        train, test = _unique_names(train, test)
+        note = f"UCS files: train {', '.join(map(str, train_p))}; test {', '.join(map(str, test_p))} (each used whole)."
+        return datasets.Experiment("ucs", "real", train, test, note)
+
+    # oxiod with explicit files; a side left out comes from the data directory's defaults
+    syn = None
+    if args.train is None or args.test is None:
+        root = datasets.oxiod_root(base) if base is not None else None
+        if root is None:
+            given = "--test" if args.train is None else "--train"
+            missing = "--train" if args.train is None else "--test"
+            where = f"{base}/oxiod" if base is not None else f"a data directory (--data-dir or ${DATA_ENV})"
+            raise UsageError(f"{given} given without {missing}, and no default recordings found in {where}")
+        syn = root.joinpath(*datasets.OXIOD_FOLDER, "syn")
+    train_p = (_oxiod_files(args.train, "--train") if args.train is not None
+               else [syn / f"imu{k}.csv" for k in datasets.OXIOD_TRAIN])
+    test_p = (_oxiod_files(args.test, "--test") if args.test is not None
+              else [syn / f"imu{k}.csv" for k in datasets.OXIOD_TEST])
+    train, test = _unique_names(_load_oxiod(train_p, fast), _load_oxiod(test_p, fast))
+    cut = f" (fast mode: first {datasets.FAST_SAMPLES} samples each)" if fast else ""
+    note = (f"OxIOD files: train {', '.join(r.name for r in train)}; test {', '.join(r.name for r in test)}{cut}.")
+    overlap = {p.resolve() for p in train_p} & {p.resolve() for p in test_p}
+    if overlap:
+        note += f" Warning: {', '.join(map(str, sorted(overlap)))} is used for training and testing."
+    return datasets.Experiment("oxiod", "real", train, test, note)
+
+
+# ---------------------------------------------------------------------------------------
+# the run
+# ---------------------------------------------------------------------------------------
+def _check_device(device: str | None) -> str:
+    import torch
+
+    from .config import default_device
+
+    try:
+        dev = torch.device(default_device(device))
+    except (RuntimeError, ValueError) as err:
+        raise UsageError(f"--device {device}: not a torch device ({_one_line(err)})") from None
+    if dev.type == "cuda" and not torch.cuda.is_available():
+        raise UsageError(f"--device {device}: CUDA is not available on this machine; use --device cpu")
+    return str(dev)
+
+
+def _check_lengths(exp: Any, config: Any) -> None:
+    """Fail early, naming the recording, when one is too short to train on or to test."""
+    w = config.window
+    for rec in exp.train:
+        n_val = 0 if config.val_fraction == 0 else max(w, int(round(config.val_fraction * len(rec))))
+        if len(rec) - n_val < w:
+            raise UsageError(f"training recording {rec.name} has {len(rec)} samples; at least {2 * w} are needed "
+                             f"(a {w}-sample window to train on plus a validation block)")
+    for rec in exp.test:
+        if len(rec) < w:
+            raise UsageError(f"test recording {rec.name} has {len(rec)} samples; at least one {w}-sample window "
+                             "is needed")
+
+
+def _metric_dict(table: Any, angle: str) -> dict[str, float]:
+    from .metrics import METRICS
+
+    return {m: float(table.loc[m, angle]) for m in METRICS}
+
+
+def _paper_values(experiment: str, angles: Sequence[str]) -> dict[str, dict[str, dict[str, float]]] | None:
+    from .metrics import METRICS, PAPER
+
+    if experiment not in PAPER:
+        return None
+    out: dict[str, dict[str, dict[str, float]]] = {}
+    for method, rows in PAPER[experiment].items():
+        per_angle = {a: {m: rows[m][a] for m in METRICS} for a in angles}
+        out[method] = {a: {m: float(v) for m, v in vals.items()}  # type: ignore[arg-type]
+                       for a, vals in per_angle.items() if all(v is not None for v in vals.values())}
+    return out if any(out.values()) else None
+
+
+def reproduce(args: argparse.Namespace) -> int:
+    """Run the ``reproduce`` subcommand; returns the exit status."""
+    t_start = time.perf_counter()
+    from .config import fast_mode
+
+    try:
+        fast = fast_mode(args.fast)
+    except ValueError as err:  # an unrecognised DANAE_FAST value
+        raise UsageError(str(err)) from None
+    seeds = [int(s) for s in args.seeds]
+    if len(set(seeds)) != len(seeds):
+        raise UsageError(f"--seeds {' '.join(map(str, seeds))}: each seed may appear only once")
+    device = _check_device(args.device)
+    out_dir = Path(args.out if args.out is not None else f"runs/reproduce-{args.experiment}").expanduser()
+    if out_dir.exists() and not out_dir.is_dir():
+        raise UsageError(f"--out {out_dir}: exists and is not a folder")
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import pandas as pd
+    import torch
+
+    from . import figures, metrics, pipeline, plots, train as training
+    from .kalman import KFConfig
+
+    exp = load_data(args, fast)
+    angles = EXPERIMENT_ANGLES[args.experiment]
+    epochs = args.epochs or (min(PAPER_EPOCHS[args.experiment], FAST_EPOCHS) if fast else PAPER_EPOCHS[args.experiment])
+    max_steps = args.max_steps or (FAST_MAX_STEPS if fast else None)
+    if args.threads:
+        torch.set_num_threads(args.threads)
+    config = training.TrainConfig(epochs=epochs, device=device, max_steps=max_steps, num_threads=args.threads)
+    _check_lengths(exp, config)
+    progress = sys.stdout.isatty()
+
+    print(exp.note)
+    print(f"experiment {exp.name} | data: {exp.data} | mode: {'fast' if fast else 'full'} | "
+          f"train {', '.join(r.name for r in exp.train)} | test {', '.join(r.name for r in exp.test)}")
+    print(f"training: angles {', '.join(angles)} | seeds {' '.join(map(str, seeds))} | epochs {epochs} | "
+          f"max steps {max_steps if max_steps is not None else 'none'} | device {device}", flush=True)
+
+    # 1. the paper's KF (identity covariances, dt = 1/fs) on every recording
+    t0 = time.perf_counter()
+    kf_config = KFConfig()
+    estimates = pipeline.filter_all([*exp.train, *exp.test], kf_config)
+    seconds_kf = time.perf_counter() - t0
+    print(f"KF on {len(exp.train) + len(exp.test)} recordings: {seconds_kf:.2f} s", flush=True)
+
+    # 2. one DANAE per angle and seed, evaluated on the test recordings
+    t0 = time.perf_counter()
+    tables, preds, results = [], {}, {}
+    for angle in angles:
+        for seed in seeds:
+            study = pipeline.seed_study(exp.train, exp.test, estimates, angles=(angle,), seeds=(seed,),
+                                        config=config, stitches=("overlap",), progress=progress)
+            tables.append(study.table)
+            preds.update(study.predictions)
+            results.update(study.results)
+            res = study.results[(angle, seed)]
+            t = study.table
+            kf_rmse = t[t.method == "kf"].rmse.mean()
+            dn_rmse = t[t.method == "danae (overlap)"].rmse.mean()
+            print(f"  {angle:<5} seed {seed}: {res.steps} steps in {res.seconds:.1f} s on {res.device}; "
+                  f"test RMSE KF {kf_rmse:.4f} -> DANAE {dn_rmse:.4f} rad", flush=True)
+    seconds_train = time.perf_counter() - t0
+    seed_table = pd.concat(tables, ignore_index=True)
+
+    # 3. metrics on all test samples together; DANAE: mean (and RMSE std) over seeds
+    def joined(arrays: Sequence[np.ndarray]) -> np.ndarray:
+        return np.concatenate([np.asarray(a, dtype=float) for a in arrays])
+
+    kf_out: dict[str, dict[str, float]] = {}
+    danae_out: dict[str, dict[str, float]] = {}
+    for angle in angles:
+        k = ANGLES.index(angle)
+        truth = joined([r.euler[:, k] for r in exp.test])
+        kf_est = joined([estimates[r.name][:, k] for r in exp.test])
+        kf_out[angle] = _metric_dict(metrics.metric_table(kf_est, truth, angles=(angle,)), angle)
+        per_seed = [_metric_dict(metrics.metric_table(joined([preds[(angle, s, "overlap")][r.name] for r in exp.test]),
+                                                      truth, angles=(angle,)), angle) for s in seeds]
+        danae_out[angle] = {m: float(np.mean([d[m] for d in per_seed])) for m in metrics.METRICS}
+        rmses = [d["rmse"] for d in per_seed]
+        danae_out[angle]["rmse_std"] = float(np.std(rmses, ddof=1)) if len(rmses) > 1 else 0.0
+    paper = _paper_values(exp.name, angles)
+
+    # 4. write everything
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    rows = []
+    for method, block in (("kf", kf_out), ("danae", danae_out)):
+        for angle, vals in block.items():
+            ref = (paper or {}).get(method, {}).get(angle, {})
+            rows.append({"method": method, "angle": angle, **{m: vals[m] for m in metrics.METRICS},
+                         "rmse_std": vals.get("rmse_std", np.nan),
+                         **{f"paper_{m}": ref.get(m, np.nan) for m in metrics.METRICS}})
+    table = pd.DataFrame(rows, columns=list(CSV_COLUMNS))
+    table.to_csv(out_dir / "metrics.csv", index=False)
+    written.append(out_dir / "metrics.csv")
+    seed_table.to_csv(out_dir / "seed_table.csv", index=False)
+    written.append(out_dir / "seed_table.csv")
+
+    spec = figures.PAPER_FIGURES[exp.name]
+    rec = exp.test[0]
+    k = ANGLES.index(spec.angle)
+    start, stop = figures.figure_window(spec, len(rec))
+    series = figures.figure_series(rec.time, rec.euler[:, k], estimates[rec.name][:, k],
+                                   preds[(spec.angle, seeds[0], "overlap")][rec.name], start, stop)
+    series.to_csv(out_dir / f"{spec.filename}.csv", index=False)
+    written.append(out_dir / f"{spec.filename}.csv")
+    plots.use_style()
+    fig = figures.plot_kf_danae(
+        series, spec.angle,
+        title=(f"Figure {spec.number} recreated: {spec.angle}, KF (above) and DANAE (below, seed {seeds[0]}) vs "
+               f"ground truth\n{rec.name} ({exp.data}), test samples {start}-{stop - 1}"))
+    fig.savefig(out_dir / f"{spec.filename}.png")
+    plt.close(fig)
+    written.append(out_dir / f"{spec.filename}.png")
+
+    if args.save_models:
+        for (angle, seed), res in results.items():
+            written.append(training.save(res, out_dir / "models" / f"danae_{angle}_seed{seed}.pt",
+                                         metadata={"experiment": exp.name, "angle": angle, "seed": seed,
+                                                   "train": [r.name for r in exp.train]}))
+
+    run = {
+        "command": " ".join(shlex.quote(a) for a in [PROG, *getattr(args, "argv", [])]),
+        "note": exp.note, "fast": fast, "device": device, "threads": torch.get_num_threads(),
+        "kf_config": repr(kf_config), "train_config": config.to_dict(),
+        "samples": {r.name: len(r) for r in [*exp.train, *exp.test]},
+        "figure": {"file": f"{spec.filename}.png", "test": rec.name, "samples": [start, stop], "seed": seeds[0]},
+    }
+    (out_dir / "run.json").write_text(json.dumps(run, indent=2) + "\n")
+    written.append(out_dir / "run.json")
+
+    result = {
+        "experiment": exp.name,
+        "data": exp.data,
+        "train": [r.name for r in exp.train],
+        "test": [r.name for r in exp.test],
+        "seeds": seeds,
+        "kf": kf_out,
+        "danae": danae_out,
+        "paper": paper,
+        "seconds": {"kf": seconds_kf, "train": seconds_train, "total": time.perf_counter() - t_start},
+    }
+    (out_dir / "metrics.json").write_text(json.dumps(result, indent=2) + "\n")
+    written.insert(0, out_dir / "metrics.json")
+
+    _print_summary(table, result)
+    print("wrote " + ", ".join(str(p) for p in written))
+    return 0
+
+
+def _print_summary(table: Any, result: dict[str, Any]) -> None:
+    """Print the metric table [rad] and the RMSE reductions [%] next to the paper's."""
+    import pandas as pd
+
+    shown = table.set_index(["method", "angle"])
+    with pd.option_context("display.float_format", "{:.4f}".format, "display.width", 140):
+        print(f"\nmetrics [rad] on the test recordings ({result['data']} data; DANAE: mean over seeds "
+              f"{' '.join(map(str, result['seeds']))}):")
+        print(shown.to_string(na_rep="-"))
+    red = []
+    for angle, kf in result["kf"].items():
+        ours = 100.0 * (1.0 - result["danae"][angle]["rmse"] / kf["rmse"])
+        paper = result["paper"] or {}
+        p_kf, p_dn = paper.get("kf", {}).get(angle), paper.get("danae", {}).get(angle)
+        theirs = f"{100.0 * (1.0 - p_dn['rmse'] / p_kf['rmse']):.1f} %" if p_kf and p_dn else "-"
+        red.append(f"{angle} {ours:.1f} % (paper {theirs})")
+    print("RMSE reduction by DANAE: " + "; ".join(red))
+    s = result["seconds"]
+    print(f"time: KF {s['kf']:.1f} s, DANAE {s['train']:.1f} s, total {s['total']:.1f} s")

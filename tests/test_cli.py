@@ -1,0 +1,201 @@
+"""``python -m danae_lite reproduce`` end to end, in fast mode on tiny data: outputs, schema, errors."""
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from conftest import synthetic_oxiod, write_rows, write_ucs
+from danae_lite import cli, datasets, metrics
+
+# tiny runs: one seed, five optimiser steps, one torch thread, CPU
+TINY = ["--fast", "--seeds", "0", "--max-steps", "5", "--threads", "1", "--device", "cpu"]
+ANGLES = {"oxiod": ["roll", "pitch", "yaw"], "ucs": ["roll", "pitch"]}
+FIGURE = {"oxiod": "figure1_roll", "ucs": "figure2_pitch"}
+TOP_KEYS = ["experiment", "data", "train", "test", "seeds", "kf", "danae", "paper", "seconds"]
+METRIC_KEYS = ["mean_dev", "max_dev", "rmse"]
+
+
+@pytest.fixture(autouse=True)
+def clean_env(monkeypatch: pytest.MonkeyPatch) -> None:
+    """No real data, no fast-mode variable, and short simulated recordings."""
+    monkeypatch.delenv("DANAE_DATA", raising=False)
+    monkeypatch.delenv("DANAE_FAST", raising=False)
+    monkeypatch.setitem(datasets.FAST_DURATION, "handheld", 6.0)
+    monkeypatch.setitem(datasets.FAST_DURATION, "underwater", 150.0)
+
+
+def run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:
+    code = cli.main(argv)
+    captured = capsys.readouterr()
+    return code, captured.out, captured.err
+
+
+def check_outputs(out: Path, experiment: str, data: str, seeds: list[int]) -> dict:
+    """Validate metrics.json (exact shape), metrics.csv (same numbers), the figure and its data."""
+    m = json.loads((out / "metrics.json").read_text())
+    angles = ANGLES[experiment]
+    assert list(m) == TOP_KEYS
+    assert m["experiment"] == experiment and m["data"] == data and m["seeds"] == seeds
+    for side in ("train", "test"):
+        assert isinstance(m[side], list) and m[side] and all(isinstance(n, str) for n in m[side])
+    assert set(m["train"]).isdisjoint(m["test"])
+    for method, keys in (("kf", METRIC_KEYS), ("danae", METRIC_KEYS + ["rmse_std"])):
+        assert list(m[method]) == angles
+        for angle in angles:
+            vals = m[method][angle]
+            assert list(vals) == keys
+            assert all(isinstance(v, float) and math.isfinite(v) and v >= 0 for v in vals.values())
+            assert vals["mean_dev"] <= vals["rmse"] + 1e-12 and vals["rmse"] <= vals["max_dev"] + 1e-12
+            assert vals["max_dev"] <= math.pi  # errors are wrapped to [-pi, pi)
+        if method == "danae" and len(seeds) == 1:
+            assert all(m["danae"][a]["rmse_std"] == 0.0 for a in angles)
+    assert list(m["paper"]) == ["kf", "danae"]
+    for method in ("kf", "danae"):
+        assert list(m["paper"][method]) == angles
+        for angle in angles:
+            assert m["paper"][method][angle] == {k: metrics.PAPER[experiment][method][k][angle] for k in METRIC_KEYS}
+    assert list(m["seconds"]) == ["kf", "train", "total"]
+    s = m["seconds"]
+    assert all(isinstance(v, float) and v >= 0 for v in s.values()) and s["total"] >= s["kf"] + s["train"]
+
+    table = pd.read_csv(out / "metrics.csv")
+    assert list(table.columns) == list(cli.CSV_COLUMNS)
+    assert list(zip(table.method, table.angle)) == [(me, a) for me in ("kf", "danae") for a in angles]
+    for row in table.itertuples():
+        ours, paper = m[row.method][row.angle], m["paper"][row.method][row.angle]
+        for k in METRIC_KEYS:
+            assert getattr(row, k) == pytest.approx(ours[k], rel=1e-12)
+            assert getattr(row, f"paper_{k}") == pytest.approx(paper[k], rel=1e-12)
+        if row.method == "kf":
+            assert np.isnan(row.rmse_std)
+        else:
+            assert row.rmse_std == pytest.approx(ours["rmse_std"], abs=1e-15)
+
+    png = out / f"{FIGURE[experiment]}.png"
+    assert png.read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+    series = pd.read_csv(out / f"{FIGURE[experiment]}.csv")
+    assert list(series.columns) == ["time_s", "ground_truth", "kf", "danae"]
+    assert len(series) >= 20 and np.isfinite(series.to_numpy()).all()
+    assert (np.diff(series.time_s) > 0).all()
+    return m
+
+
+@pytest.mark.parametrize("experiment", ["oxiod", "ucs"])
+def test_simulated(experiment: str, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, out, err = run(["reproduce", "--experiment", experiment, "--out", str(tmp_path), *TINY], capsys)
+    assert code == 0, err
+    assert "simulator stands in" in out and "data: simulated" in out
+    m = check_outputs(tmp_path, experiment, "simulated", [0])
+    run_info = json.loads((tmp_path / "run.json").read_text())
+    assert run_info["fast"] is True and run_info["train_config"]["max_steps"] == 5
+    seed_table = pd.read_csv(tmp_path / "seed_table.csv")
+    kf_rows = seed_table[seed_table.method == "kf"].set_index("angle")
+    for angle in ANGLES[experiment]:  # one test recording: the per-recording rows are the totals
+        assert kf_rows.loc[angle, "rmse"] == pytest.approx(m["kf"][angle]["rmse"], rel=1e-12)
+
+
+def test_oxiod_files(tmp_oxiod, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    syn = tmp_oxiod.syn
+    out = tmp_path / "out"
+    code, stdout, err = run(["reproduce", "--train", str(syn / "imu3.csv"), str(syn / "imu4.csv"),
+                             "--test", str(syn / "imu2.csv"), "--out", str(out), "--save-models", *TINY], capsys)
+    assert code == 0, err
+    m = check_outputs(out, "oxiod", "real", [0])
+    assert m["train"] == ["handheld/data1/imu3", "handheld/data1/imu4"] and m["test"] == ["handheld/data1/imu2"]
+    # the figure data is the test recording itself (200 samples, shorter than the paper's 25 s)
+    series = pd.read_csv(out / "figure1_roll.csv")
+    assert len(series) == 200 and series.time_s.iloc[1] == pytest.approx(0.01)
+    np.testing.assert_allclose(series.ground_truth, tmp_oxiod.euler[2][:, 0], atol=1e-9)
+    assert sorted(p.name for p in (out / "models").iterdir()) == [f"danae_{a}_seed0.pt" for a in ("pitch", "roll", "yaw")]
+
+
+def test_oxiod_data_dir_defaults(tmp_oxiod, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "out"
+    code, stdout, err = run(["reproduce", "--data-dir", str(tmp_oxiod.data_dir), "--out", str(out), *TINY], capsys)
+    assert code == 0, err
+    m = check_outputs(out, "oxiod", "real", [0])
+    assert m["train"] == [f"handheld/data1/imu{k}" for k in (3, 4, 7)] and m["test"] == ["handheld/data1/imu2"]
+
+
+def test_ucs_single_file_is_split(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    path = write_ucs(tmp_path / "ucs" / "imu_adis.txt")  # 300 rows
+    out = tmp_path / "out"
+    code, stdout, err = run(["reproduce", "--experiment", "ucs", "--test", str(path), "--out", str(out), *TINY], capsys)
+    assert code == 0, err
+    m = check_outputs(out, "ucs", "real", [0])
+    samples = json.loads((out / "run.json").read_text())["samples"]
+    assert [samples[n] for n in m["train"] + m["test"]] == [240, 60]
+
+
+def _message(err: str) -> str:
+    lines = [ln for ln in err.strip().splitlines() if ln.strip()]
+    assert len(lines) == 1 and "Traceback" not in err, err
+    return lines[0]
+
+
+def test_missing_test_file(tmp_oxiod, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    missing = tmp_path / "nowhere" / "imu9.csv"
+    code, _, err = run(["reproduce", "--train", str(tmp_oxiod.syn / "imu3.csv"), "--test", str(missing),
+                        "--out", str(tmp_path / "out"), *TINY], capsys)
+    assert code == 2 and str(missing) in _message(err)
+    assert not (tmp_path / "out").exists()
+
+
+def test_malformed_file(tmp_oxiod, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    bad = tmp_path / "bad"
+    imu, vi, _ = synthetic_oxiod(seed=5)
+    write_rows(bad / "imu5.csv", imu)
+    write_rows(bad / "vi5.csv", vi)
+    lines = (bad / "imu5.csv").read_text().splitlines()
+    lines[7] = lines[7].rsplit(",", 1)[0]  # 15 columns instead of 16
+    (bad / "imu5.csv").write_text("\n".join(lines) + "\n")
+    code, _, err = run(["reproduce", "--train", str(tmp_oxiod.syn / "imu3.csv"), "--test", str(bad / "imu5.csv"),
+                        "--out", str(tmp_path / "out"), *TINY], capsys)
+    msg = _message(err)
+    assert code == 2 and str(bad / "imu5.csv") in msg and "line 8" in msg and "15" in msg
+
+
+@pytest.mark.parametrize("how", ["--test folder", "--data-dir", "incomplete oxiod folder"])
+def test_folder_without_recordings(how: str, tmp_oxiod, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    if how == "--test folder":
+        argv, named = ["--train", str(tmp_oxiod.syn / "imu3.csv"), "--test", str(empty)], str(empty)
+    elif how == "--data-dir":
+        argv, named = ["--data-dir", str(empty)], str(empty / "oxiod")
+    else:
+        (tmp_oxiod.syn / "vi4.csv").unlink()
+        argv, named = ["--data-dir", str(tmp_oxiod.data_dir)], str(tmp_oxiod.syn / "vi4.csv")
+    code, _, err = run(["reproduce", *argv, "--out", str(tmp_path / "out"), *TINY], capsys)
+    assert code == 2 and named in _message(err)
+
+
+def test_usage_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = run(["reproduce", "--experiment", "aqualoc"], capsys)
+    assert code == 2 and "invalid choice" in err
+    code, _, err = run(["reproduce", "--data-dir", str(tmp_path / "absent"), *TINY], capsys)
+    assert code == 2 and str(tmp_path / "absent") in _message(err)
+    code, _, err = run(["reproduce", "--seeds", "1", "1", "--out", str(tmp_path / "o")], capsys)
+    assert code == 2 and "--seeds" in _message(err)
+    code, _, err = run(["reproduce", "--test", str(tmp_path / "imu2.csv"), *TINY], capsys)
+    assert code == 2 and "--train" in _message(err)
+    code, _, _ = run([], capsys)
+    assert code == 2
+
+
+def test_help_subprocess() -> None:
+    proc = subprocess.run([sys.executable, "-m", "danae_lite", "reproduce", "--help"],
+                          capture_output=True, text=True, timeout=120, cwd=Path(__file__).parents[1])
+    assert proc.returncode == 0, proc.stderr
+    text = proc.stdout
+    for flag in ("--experiment", "--data-dir", "--train", "--test", "--seeds", "--epochs", "--max-steps",
+                 "--fast", "--device", "--threads", "--save-models", "--out", "DANAE_DATA", "DANAE_FAST",
+                 "80%", "imu3, imu4, imu7", "Default"):
+        assert flag in text, flag
