@@ -8,6 +8,8 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 JOBS   ?= 2
+# trained networks are shared between chapters through this cache (see danae_lite.config)
+export DANAE_CACHE ?= $(CURDIR)/_build/danae_cache
 
 .PHONY: book test unit notebooks lab bench clean
 

@@ -3,6 +3,10 @@
 ``DANAE_FAST``
     ``1``/``true``/``yes`` switches every notebook and the CLI to a reduced run (fewer epochs,
     shorter recordings) so that the whole notebook suite runs in minutes. Default: off.
+``DANAE_CACHE``
+    Directory where trained networks are kept between chapters (keyed by a hash of their
+    data and settings), so a later chapter reuses a network an earlier one trained. Unset:
+    no cache. ``make book`` and ``make test`` set it to ``_build/danae_cache``.
 ``DANAE_DATA``
     Directory that holds the real datasets in their original layout, as sub-folders
     ``oxiod/`` (``<setting>/<dataN>/syn/imuK.csv`` + ``viK.csv``) and ``ucs/``
@@ -18,6 +22,7 @@ import numpy as np
 
 FAST_ENV = "DANAE_FAST"
 DATA_ENV = "DANAE_DATA"
+CACHE_ENV = "DANAE_CACHE"
 DEFAULT_SEED = 0
 
 _TRUE = {"1", "true", "yes", "on"}
@@ -56,6 +61,19 @@ def data_dir(path: str | os.PathLike[str] | None = None) -> Path | None:
     p = Path(path).expanduser().resolve()
     if not p.is_dir():
         raise FileNotFoundError(f"{origin} points to {p}, which is not a directory")
+    return p
+
+
+def cache_dir(path: str | os.PathLike[str] | None = None) -> Path | None:
+    """Directory for cached trained networks: ``path`` if given, else ``DANAE_CACHE``, else None.
+
+    The directory is created when needed.
+    """
+    raw = str(path) if path is not None else os.environ.get(CACHE_ENV, "").strip()
+    if not raw:
+        return None
+    p = Path(raw).expanduser().resolve()
+    p.mkdir(parents=True, exist_ok=True)
     return p
 
 

@@ -10,8 +10,11 @@ same angle as target.
 """
 from __future__ import annotations
 
+import hashlib
+import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass, replace
+from pathlib import Path
 
 import numpy as np
 import pandas as pd
@@ -20,7 +23,8 @@ from numpy.typing import NDArray
 from . import kalman, metrics
 from .angles import ANGLES
 from .recording import Recording
-from .train import TrainConfig, TrainResult, predict, train
+from .config import cache_dir as resolve_cache_dir
+from .train import TrainConfig, TrainResult, load_result, predict, save, train
 
 
 def filter_all(recordings: Iterable[Recording], config: kalman.KFConfig | None = None) -> dict[str, NDArray[np.float64]]:
@@ -35,20 +39,46 @@ def train_angle(
     config: TrainConfig | None = None,
     *,
     progress: bool = True,
+    cache: str | os.PathLike[str] | None = None,
 ) -> TrainResult:
     """Train one DANAE for ``angle`` on the training recordings.
 
     Inputs are ``estimates[rec.name][:, k]`` (the filter's angle, rad), targets
     ``rec.euler[:, k]`` (ground truth, rad), one array per recording so that no window
     crosses two recordings.
+
+    ``cache`` (default: the ``DANAE_CACHE`` directory, see :func:`danae_lite.config.cache_dir`;
+    none when unset) keeps trained networks on disk, keyed by a hash of the inputs, targets,
+    training settings and the source of the model/training code. A second chapter asking for
+    the same network loads it instead of training it again.
     """
     k = ANGLES.index(angle)
-    return train(
-        [estimates[r.name][:, k] for r in train_recs],
-        [r.euler[:, k] for r in train_recs],
-        config,
-        progress=progress,
-    )
+    config = config or TrainConfig()
+    inputs = [np.ascontiguousarray(estimates[r.name][:, k]) for r in train_recs]
+    targets = [np.ascontiguousarray(r.euler[:, k]) for r in train_recs]
+    folder = resolve_cache_dir(cache)
+    path = folder / f"danae-{angle}-seed{config.seed}-{_cache_key(inputs, targets, config)}.pt" if folder else None
+    if path is not None and path.is_file():
+        return load_result(path)
+    res = train(inputs, targets, config, progress=progress)
+    if path is not None:
+        save(res, path, metadata={"angle": angle, "train": [r.name for r in train_recs]})
+    return res
+
+
+def _cache_key(inputs: list[NDArray[np.float64]], targets: list[NDArray[np.float64]], config: TrainConfig) -> str:
+    """Hash of everything that determines a trained network (not the device or thread count)."""
+    from . import model as model_module, train as train_module
+
+    h = hashlib.sha256()
+    for module in (model_module, train_module):
+        h.update(Path(module.__file__).read_bytes())
+    settings = {k: v for k, v in config.to_dict().items() if k not in ("device", "num_threads")}
+    h.update(repr(sorted(settings.items())).encode())
+    for a in (*inputs, *targets):
+        h.update(str(a.shape).encode())
+        h.update(a.astype(np.float64).tobytes())
+    return h.hexdigest()[:16]
 
 
 @dataclass
@@ -88,6 +118,7 @@ def seed_study(
     config: TrainConfig | None = None,
     stitches: Sequence[str] = ("overlap", "tiles"),
     progress: bool = True,
+    cache: str | os.PathLike[str] | None = None,
 ) -> SeedStudy:
     """Train one DANAE per angle and seed; evaluate KF and DANAE on every test recording.
 
@@ -95,7 +126,7 @@ def seed_study(
     ``"overlap"`` reconstruction covers every sample. The ``"tiles"`` reconstruction (the
     paper's non-overlapping windows) leaves the last ``N mod window`` samples uncovered; its
     rows are computed on the covered samples only and the ``samples`` column says how many.
-    The KF rows always use every sample.
+    The KF rows always use every sample. ``cache`` is passed to :func:`train_angle`.
     """
     base = config or TrainConfig()
     results: dict[tuple[str, int], TrainResult] = {}
@@ -104,7 +135,8 @@ def seed_study(
     for angle in angles:
         k = ANGLES.index(angle)
         for seed in seeds:
-            res = train_angle(train_recs, estimates, angle, replace(base, seed=int(seed)), progress=progress)
+            res = train_angle(train_recs, estimates, angle, replace(base, seed=int(seed)), progress=progress,
+                              cache=cache)
             results[(angle, int(seed))] = res
             for rec in test_recs:
                 est, truth = estimates[rec.name][:, k], rec.euler[:, k]

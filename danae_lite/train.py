@@ -684,3 +684,32 @@ def load(
         raise CheckpointError(f"{path}: damaged {arch!r} checkpoint: {type(err).__name__}: {err}") from err
     net = net.to(map_location).eval()
     return net, config, dict(ckpt.get("metadata") or {})
+
+
+def load_result(path: str | os.PathLike[str], *, map_location: str | torch.device = "cpu") -> TrainResult:
+    """Read a checkpoint written by :func:`save` from a :class:`TrainResult` back into one.
+
+    The network, its configuration, loss history and training bookkeeping are restored, so a
+    cached run can stand in for a fresh one. Raises :class:`CheckpointError` when the file
+    lacks the training metadata (e.g. it was saved from a bare network).
+    """
+    net, config, meta = load(path, map_location=map_location)
+    needed = ("history", "best_step", "best_val_loss", "seconds", "steps", "n_train_windows", "n_val_windows", "device")
+    missing = [k for k in needed if k not in meta]
+    if config is None or missing:
+        raise CheckpointError(f"{path}: not saved from a training run (missing {missing or ['config']})")
+    known = set(needed) | {"stopped_early", "torch_version", "danae_lite_version", "normalization"}
+    return TrainResult(
+        model=net,
+        config=config,
+        history=pd.DataFrame(meta["history"]),
+        best_step=int(meta["best_step"]),
+        best_val_loss=float("nan") if meta["best_val_loss"] is None else float(meta["best_val_loss"]),
+        seconds=float(meta["seconds"]),
+        steps=int(meta["steps"]),
+        n_train_windows=int(meta["n_train_windows"]),
+        n_val_windows=int(meta["n_val_windows"]),
+        device=str(meta["device"]),
+        stopped_early=bool(meta.get("stopped_early", False)),
+        metadata={k: v for k, v in meta.items() if k not in known},
+    )

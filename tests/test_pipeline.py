@@ -36,3 +36,22 @@ def test_seed_study_tables(recs):
     row = t[(t.method == "danae (overlap)") & (t.seed == 1)].rmse.iloc[0]
     assert red.loc[1, "roll"] == pytest.approx(100 * (1 - row / kf_rmse))
     assert red.loc["mean", "roll"] == pytest.approx(red.loc[[0, 1], "roll"].mean())
+
+
+def test_train_angle_cache_reuses_the_network(recs, tmp_path):
+    est = pipeline.filter_all(recs)
+    cfg = TrainConfig(max_steps=5, num_threads=1)
+    first = pipeline.train_angle(recs[1:], est, "pitch", cfg, progress=False, cache=tmp_path)
+    files = list(tmp_path.glob("danae-pitch-seed0-*.pt"))
+    assert len(files) == 1
+    again = pipeline.train_angle(recs[1:], est, "pitch", cfg, progress=False, cache=tmp_path)
+    assert again.steps == first.steps and again.best_step == first.best_step
+    assert again.history.equals(first.history)
+    x = est[recs[0].name][:, 1]
+    from danae_lite.train import predict
+    np.testing.assert_array_equal(predict(again, x), predict(first, x))
+    # another seed or other data is another entry
+    pipeline.train_angle(recs[1:], est, "pitch", TrainConfig(max_steps=5, num_threads=1, seed=1), progress=False,
+                         cache=tmp_path)
+    pipeline.train_angle(recs[:2], est, "pitch", cfg, progress=False, cache=tmp_path)
+    assert len(list(tmp_path.glob("*.pt"))) == 3
