@@ -11,7 +11,7 @@ JOBS   ?= 2
 # trained networks are shared between chapters through this cache (see danae_lite.config)
 export DANAE_CACHE ?= $(CURDIR)/_build/danae_cache
 
-.PHONY: book test unit notebooks lab bench clean
+.PHONY: book test unit lab bench clean
 
 $(STAMP): requirements.txt pyproject.toml
 	test -x $(BIN)/python || $(PYTHON) -m venv $(VENV)
@@ -35,7 +35,7 @@ lab: $(STAMP)
 	$(BIN)/jupyter lab notebooks
 
 bench: $(STAMP)
-	$(BIN)/python benchmarks/run.py
+	$(BIN)/python benchmarks/kf_throughput.py
 
 clean:
 	rm -rf _build .pytest_cache .hypothesis
