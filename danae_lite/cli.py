@@ -1,16 +1,18 @@
 """Command line: ``python -m danae_lite reproduce`` runs the paper's experiment end to end.
 
-The command only wires existing steps together: data (:mod:`~danae_lite.datasets`,
-:mod:`~danae_lite.oxiod`, :mod:`~danae_lite.ucs`) -> the paper's KF on every recording ->
-one DANAE per angle and seed (:func:`danae_lite.pipeline.seed_study`) -> the paper's metrics
+The command parses arguments, resolves the data (:mod:`~danae_lite.datasets`,
+:mod:`~danae_lite.oxiod`, :mod:`~danae_lite.ucs`) and calls
+:func:`danae_lite.pipeline.reproduce`, the same function the book's chapters call: the
+paper's KF on every recording -> one DANAE per angle and seed -> the paper's metrics
 (:mod:`~danae_lite.metrics`) -> the paper's figure (:mod:`~danae_lite.figures`). It writes
-into ``--out``:
+into ``--out`` (:meth:`danae_lite.pipeline.Reproduction.write`, plus ``run.json``):
 
 ``metrics.json``
     ``{"experiment", "data", "train", "test", "seeds", "kf", "danae", "paper", "seconds"}``;
     ``kf[angle]`` and ``danae[angle]`` hold ``mean_dev``, ``max_dev``, ``rmse`` [rad]
     (``danae`` also ``rmse_std``), ``paper`` the paper's Table 1 or 2 in the same layout (or
-    null), ``seconds`` the wall time of the KF, of training + inference, and in total.
+    null), ``seconds`` the wall time of the KF, of training + inference, and of the whole
+    pipeline (data loading excluded).
 ``metrics.csv``
     The same numbers, one row per method and angle, with the paper's values beside them.
 ``seed_table.csv``
@@ -38,16 +40,16 @@ import json
 import re
 import shlex
 import sys
-import time
 from collections.abc import Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-import numpy as np
-
-from .angles import ANGLES
 from .config import DATA_ENV, FAST_ENV
 from .datasets import FAST_DURATION, FAST_SAMPLES, OXIOD_TEST, OXIOD_TRAIN, TRAIN_FRACTION
+
+if TYPE_CHECKING:
+    from .pipeline import Reproduction
+    from .train import TrainConfig
 
 __all__ = ["main", "build_parser"]
 
@@ -61,9 +63,17 @@ FAST_EPOCHS = 2
 FAST_MAX_STEPS = 300
 """Default cap on optimiser steps per network in fast mode."""
 DEFAULT_SEEDS = (0, 1, 2)
-CSV_COLUMNS = ("method", "angle", "mean_dev", "max_dev", "rmse", "rmse_std",
-               "paper_mean_dev", "paper_max_dev", "paper_rmse")
 _IMU_RE = re.compile(r"imu(\d+)\.csv")
+
+
+def __getattr__(name: str) -> Any:
+    """``CSV_COLUMNS`` is :data:`danae_lite.pipeline.CSV_COLUMNS`, imported on first use (the
+    pipeline imports torch, which ``--help`` does not need)."""
+    if name == "CSV_COLUMNS":
+        from .pipeline import CSV_COLUMNS
+
+        return CSV_COLUMNS
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 class UsageError(Exception):
@@ -344,42 +354,29 @@ def _check_device(device: str | None) -> str:
     return str(dev)
 
 
-def _check_lengths(exp: Any, config: Any) -> None:
-    """Fail early, naming the recording, when one is too short to train on or to test."""
-    w = config.window
-    for rec in exp.train:
-        n_val = 0 if config.val_fraction == 0 else max(w, int(round(config.val_fraction * len(rec))))
-        if len(rec) - n_val < w:
-            raise UsageError(f"training recording {rec.name} has {len(rec)} samples; at least {2 * w} are needed "
-                             f"(a {w}-sample window to train on plus a validation block)")
-    for rec in exp.test:
-        if len(rec) < w:
-            raise UsageError(f"test recording {rec.name} has {len(rec)} samples; at least one {w}-sample window "
-                             "is needed")
+def _out_dir(args: argparse.Namespace) -> Path:
+    out_dir = Path(args.out if args.out is not None else f"runs/reproduce-{args.experiment}").expanduser()
+    if out_dir.exists() and not out_dir.is_dir():
+        raise UsageError(f"--out {out_dir}: exists and is not a folder")
+    return out_dir
 
 
-def _metric_dict(table: Any, angle: str) -> dict[str, float]:
-    from .metrics import METRICS
+def _train_config(args: argparse.Namespace, fast: bool, device: str) -> TrainConfig:
+    """The training settings from ``--epochs``/``--max-steps``/``--threads`` and the paper's defaults."""
+    from .train import TrainConfig
 
-    return {m: float(table.loc[m, angle]) for m in METRICS}
+    paper = PAPER_EPOCHS[args.experiment]
+    epochs = args.epochs or (min(paper, FAST_EPOCHS) if fast else paper)
+    max_steps = args.max_steps or (FAST_MAX_STEPS if fast else None)
+    return TrainConfig(epochs=epochs, device=device, max_steps=max_steps, num_threads=args.threads)
 
 
-def _paper_values(experiment: str, angles: Sequence[str]) -> dict[str, dict[str, dict[str, float]]] | None:
-    from .metrics import METRICS, PAPER
-
-    if experiment not in PAPER:
-        return None
-    out: dict[str, dict[str, dict[str, float]]] = {}
-    for method, rows in PAPER[experiment].items():
-        per_angle = {a: {m: rows[m][a] for m in METRICS} for a in angles}
-        out[method] = {a: {m: float(v) for m, v in vals.items()}  # type: ignore[arg-type]
-                       for a, vals in per_angle.items() if all(v is not None for v in vals.values())}
-    return out if any(out.values()) else None
+def _log(line: str) -> None:
+    print(line, flush=True)
 
 
 def reproduce(args: argparse.Namespace) -> int:
-    """Run the ``reproduce`` subcommand; returns the exit status."""
-    t_start = time.perf_counter()
+    """Run the ``reproduce`` subcommand (:func:`danae_lite.pipeline.reproduce`); returns the exit status."""
     from .config import fast_mode
 
     try:
@@ -390,153 +387,76 @@ def reproduce(args: argparse.Namespace) -> int:
     if len(set(seeds)) != len(seeds):
         raise UsageError(f"--seeds {' '.join(map(str, seeds))}: each seed may appear only once")
     device = _check_device(args.device)
-    out_dir = Path(args.out if args.out is not None else f"runs/reproduce-{args.experiment}").expanduser()
-    if out_dir.exists() and not out_dir.is_dir():
-        raise UsageError(f"--out {out_dir}: exists and is not a folder")
+    out_dir = _out_dir(args)
 
     import matplotlib
 
     matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import pandas as pd
     import torch
 
-    from . import figures, metrics, pipeline, plots, train as training
-    from .kalman import KFConfig
+    from . import pipeline
 
     exp = load_data(args, fast)
     angles = EXPERIMENT_ANGLES[args.experiment]
-    epochs = args.epochs or (min(PAPER_EPOCHS[args.experiment], FAST_EPOCHS) if fast else PAPER_EPOCHS[args.experiment])
-    max_steps = args.max_steps or (FAST_MAX_STEPS if fast else None)
     if args.threads:
         torch.set_num_threads(args.threads)
-    config = training.TrainConfig(epochs=epochs, device=device, max_steps=max_steps, num_threads=args.threads)
-    _check_lengths(exp, config)
-    progress = sys.stdout.isatty()
+    config = _train_config(args, fast, device)
+    pipeline.check_lengths(exp, config)
 
     print(exp.note)
     print(f"experiment {exp.name} | data: {exp.data} | mode: {'fast' if fast else 'full'} | "
           f"train {', '.join(r.name for r in exp.train)} | test {', '.join(r.name for r in exp.test)}")
-    print(f"training: angles {', '.join(angles)} | seeds {' '.join(map(str, seeds))} | epochs {epochs} | "
-          f"max steps {max_steps if max_steps is not None else 'none'} | device {device}", flush=True)
-
-    # 1. the paper's KF (identity covariances, dt = 1/fs) on every recording
-    t0 = time.perf_counter()
-    kf_config = KFConfig()
-    estimates = pipeline.filter_all([*exp.train, *exp.test], kf_config)
-    seconds_kf = time.perf_counter() - t0
-    print(f"KF on {len(exp.train) + len(exp.test)} recordings: {seconds_kf:.2f} s", flush=True)
-
-    # 2. one DANAE per angle and seed, evaluated on the test recordings
-    t0 = time.perf_counter()
-    tables, preds, results = [], {}, {}
-    for angle in angles:
-        for seed in seeds:
-            study = pipeline.seed_study(exp.train, exp.test, estimates, angles=(angle,), seeds=(seed,),
-                                        config=config, stitches=("overlap",), progress=progress)
-            tables.append(study.table)
-            preds.update(study.predictions)
-            results.update(study.results)
-            res = study.results[(angle, seed)]
-            t = study.table
-            kf_rmse = t[t.method == "kf"].rmse.mean()
-            dn_rmse = t[t.method == "danae (overlap)"].rmse.mean()
-            print(f"  {angle:<5} seed {seed}: {res.steps} steps in {res.seconds:.1f} s on {res.device}; "
-                  f"test RMSE KF {kf_rmse:.4f} -> DANAE {dn_rmse:.4f} rad", flush=True)
-    seconds_train = time.perf_counter() - t0
-    seed_table = pd.concat(tables, ignore_index=True)
-
-    # 3. metrics on all test samples together; DANAE: mean (and RMSE std) over seeds
-    def joined(arrays: Sequence[np.ndarray]) -> np.ndarray:
-        return np.concatenate([np.asarray(a, dtype=float) for a in arrays])
-
-    kf_out: dict[str, dict[str, float]] = {}
-    danae_out: dict[str, dict[str, float]] = {}
-    for angle in angles:
-        k = ANGLES.index(angle)
-        truth = joined([r.euler[:, k] for r in exp.test])
-        kf_est = joined([estimates[r.name][:, k] for r in exp.test])
-        kf_out[angle] = _metric_dict(metrics.metric_table(kf_est, truth, angles=(angle,)), angle)
-        per_seed = [_metric_dict(metrics.metric_table(joined([preds[(angle, s, "overlap")][r.name] for r in exp.test]),
-                                                      truth, angles=(angle,)), angle) for s in seeds]
-        danae_out[angle] = {m: float(np.mean([d[m] for d in per_seed])) for m in metrics.METRICS}
-        rmses = [d["rmse"] for d in per_seed]
-        danae_out[angle]["rmse_std"] = float(np.std(rmses, ddof=1)) if len(rmses) > 1 else 0.0
-    paper = _paper_values(exp.name, angles)
-
-    # 4. write everything
-    out_dir.mkdir(parents=True, exist_ok=True)
-    written: list[Path] = []
-    rows = []
-    for method, block in (("kf", kf_out), ("danae", danae_out)):
-        for angle, vals in block.items():
-            ref = (paper or {}).get(method, {}).get(angle, {})
-            rows.append({"method": method, "angle": angle, **{m: vals[m] for m in metrics.METRICS},
-                         "rmse_std": vals.get("rmse_std", np.nan),
-                         **{f"paper_{m}": ref.get(m, np.nan) for m in metrics.METRICS}})
-    table = pd.DataFrame(rows, columns=list(CSV_COLUMNS))
-    table.to_csv(out_dir / "metrics.csv", index=False)
-    written.append(out_dir / "metrics.csv")
-    seed_table.to_csv(out_dir / "seed_table.csv", index=False)
-    written.append(out_dir / "seed_table.csv")
-
-    spec = figures.PAPER_FIGURES[exp.name]
-    rec = exp.test[0]
-    k = ANGLES.index(spec.angle)
-    start, stop = figures.figure_window(spec, len(rec))
-    series = figures.figure_series(rec.time, rec.euler[:, k], estimates[rec.name][:, k],
-                                   preds[(spec.angle, seeds[0], "overlap")][rec.name], start, stop)
-    series.to_csv(out_dir / f"{spec.filename}.csv", index=False)
-    written.append(out_dir / f"{spec.filename}.csv")
-    plots.use_style()
-    fig = figures.plot_kf_danae(
-        series, spec.angle,
-        title=(f"Figure {spec.number} recreated: {spec.angle}, KF (above) and DANAE (below, seed {seeds[0]}) vs "
-               f"ground truth\n{rec.name} ({exp.data}), test samples {start}-{stop - 1}"))
-    fig.savefig(out_dir / f"{spec.filename}.png")
-    plt.close(fig)
-    written.append(out_dir / f"{spec.filename}.png")
-
+    print(f"training: angles {', '.join(angles)} | seeds {' '.join(map(str, seeds))} | epochs {config.epochs} | "
+          f"max steps {config.max_steps if config.max_steps is not None else 'none'} | device {device}", flush=True)
+    rep = pipeline.reproduce(exp, angles=angles, seeds=seeds, config=config, progress=sys.stdout.isatty(), log=_log)
+    written = rep.write(out_dir)
     if args.save_models:
-        for (angle, seed), res in results.items():
-            written.append(training.save(res, out_dir / "models" / f"danae_{angle}_seed{seed}.pt",
-                                         metadata={"experiment": exp.name, "angle": angle, "seed": seed,
-                                                   "train": [r.name for r in exp.train]}))
+        written += _save_models(rep, out_dir / "models")
+    written.append(_write_run_json(args, rep, fast, device, out_dir))
 
-    run = {
-        "command": " ".join(shlex.quote(a) for a in [PROG, *getattr(args, "argv", [])]),
-        "note": exp.note, "fast": fast, "device": device, "threads": torch.get_num_threads(),
-        "kf_config": repr(kf_config), "train_config": config.to_dict(),
-        "samples": {r.name: len(r) for r in [*exp.train, *exp.test]},
-        "figure": {"file": f"{spec.filename}.png", "test": rec.name, "samples": [start, stop], "seed": seeds[0]},
-    }
-    (out_dir / "run.json").write_text(json.dumps(run, indent=2) + "\n")
-    written.append(out_dir / "run.json")
-
-    result = {
-        "experiment": exp.name,
-        "data": exp.data,
-        "train": [r.name for r in exp.train],
-        "test": [r.name for r in exp.test],
-        "seeds": seeds,
-        "kf": kf_out,
-        "danae": danae_out,
-        "paper": paper,
-        "seconds": {"kf": seconds_kf, "train": seconds_train, "total": time.perf_counter() - t_start},
-    }
-    (out_dir / "metrics.json").write_text(json.dumps(result, indent=2) + "\n")
-    written.insert(0, out_dir / "metrics.json")
-
-    _print_summary(table, result)
+    _print_summary(rep)
     print("wrote " + ", ".join(str(p) for p in written))
     return 0
 
 
-def _print_summary(table: Any, result: dict[str, Any]) -> None:
+def _save_models(rep: Reproduction, folder: Path) -> list[Path]:
+    """One checkpoint per angle and seed (:func:`danae_lite.train.save`)."""
+    from .train import save
+
+    exp = rep.experiment
+    return [save(res, folder / f"danae_{angle}_seed{seed}.pt",
+                 metadata={"experiment": exp.name, "angle": angle, "seed": seed, "train": rep.train})
+            for (angle, seed), res in rep.study.results.items()]
+
+
+def _write_run_json(args: argparse.Namespace, rep: Reproduction, fast: bool, device: str, out_dir: Path) -> Path:
+    """``run.json``: the command, data note, mode, settings and the figure shown."""
+    import torch
+
+    from .figures import PAPER_FIGURES
+
+    exp = rep.experiment
+    spec = PAPER_FIGURES[exp.name]
+    series = rep.figure_series(spec)
+    run = {
+        "command": " ".join(shlex.quote(a) for a in [PROG, *getattr(args, "argv", [])]),
+        "note": exp.note, "fast": fast, "device": device, "threads": torch.get_num_threads(),
+        "kf_config": repr(rep.kf_config), "train_config": rep.config.to_dict(),
+        "samples": {r.name: len(r) for r in [*exp.train, *exp.test]},
+        "figure": {"file": f"{spec.filename}.png", "test": rep.test[0],
+                   "samples": [int(series.index[0]), int(series.index[-1]) + 1], "seed": rep.seeds[0]},
+    }
+    path = out_dir / "run.json"
+    path.write_text(json.dumps(run, indent=2) + "\n")
+    return path
+
+
+def _print_summary(rep: Reproduction) -> None:
     """Print the metric table [rad] and the RMSE reductions [%] next to the paper's."""
     import pandas as pd
 
-    shown = table.set_index(["method", "angle"])
+    result = rep.to_json()
+    shown = rep.metrics_frame().set_index(["method", "angle"])
     with pd.option_context("display.float_format", "{:.4f}".format, "display.width", 140):
         print(f"\nmetrics [rad] on the test recordings ({result['data']} data; DANAE: mean over seeds "
               f"{' '.join(map(str, result['seeds']))}):")

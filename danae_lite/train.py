@@ -337,7 +337,10 @@ def train(
     may be smaller. On CPU, with the same seed, data and thread count, two runs give
     bit-identical networks (``torch.use_deterministic_algorithms`` is on while training).
     """
-    from tqdm.auto import tqdm
+    if progress:  # tqdm.auto picks the notebook widget when it can (and warns when it cannot)
+        from tqdm.auto import tqdm
+    else:
+        from tqdm import tqdm
 
     cfg = config or TrainConfig()
     xs, ys = _as_list(inputs), _as_list(targets)

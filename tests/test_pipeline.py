@@ -55,3 +55,79 @@ def test_train_angle_cache_reuses_the_network(recs, tmp_path):
                          cache=tmp_path)
     pipeline.train_angle(recs[:2], est, "pitch", cfg, progress=False, cache=tmp_path)
     assert len(list(tmp_path.glob("*.pt"))) == 3
+
+
+def test_reproduce_metrics_match_an_independent_computation(recs, tmp_path):
+    """reproduce(): the JSON numbers are metric_table on the joined test samples, DANAE a mean over seeds."""
+    import json
+
+    from danae_lite.datasets import Experiment
+
+    test2 = simulate.simulate("handheld", duration=4.0, seed=7, name="sim-extra")
+    exp = Experiment("oxiod", "simulated", recs[1:], [recs[0], test2], "tiny simulated data")
+    cfg = TrainConfig(max_steps=5, num_threads=1)
+    lines: list[str] = []
+    rep = pipeline.reproduce(exp, angles=("roll", "yaw"), seeds=(0, 1), config=cfg, progress=False,
+                             cache=tmp_path / "cache", log=lines.append)
+    assert len(lines) == 1 + 2 * 2 and set(rep.study.results) == {(a, s) for a in ("roll", "yaw") for s in (0, 1)}
+    out = rep.to_json()
+    assert list(out) == ["experiment", "data", "train", "test", "seeds", "kf", "danae", "paper", "seconds"]
+    assert out["test"] == [recs[0].name, "sim-extra"] and out["seeds"] == [0, 1]
+    for angle, k in (("roll", 0), ("yaw", 2)):
+        truth = np.concatenate([r.euler[:, k] for r in exp.test])
+        kf = np.concatenate([rep.estimates[r.name][:, k] for r in exp.test])
+        expected = metrics.metric_table(kf, truth, angles=(angle,))[angle]
+        assert out["kf"][angle] == pytest.approx(expected.to_dict(), rel=1e-12)
+        per_seed = [metrics.metric_table(np.concatenate([rep.study.predictions[(angle, s, "overlap")][r.name]
+                                                         for r in exp.test]), truth, angles=(angle,))[angle]
+                    for s in (0, 1)]
+        dn = out["danae"][angle]
+        for m in metrics.METRICS:
+            assert dn[m] == pytest.approx(np.mean([t[m] for t in per_seed]), rel=1e-12)
+        assert dn["rmse_std"] == pytest.approx(np.std([t["rmse"] for t in per_seed], ddof=1), rel=1e-12)
+        assert out["paper"]["kf"][angle]["rmse"] == metrics.PAPER["oxiod"]["kf"]["rmse"][angle]
+    assert out["kf"]["yaw"]["max_dev"] <= np.pi  # wrapped errors
+    s = out["seconds"]
+    assert list(s) == ["kf", "train", "total"] and s["total"] >= s["kf"] + s["train"]
+
+    frame = rep.metrics_frame()
+    assert list(zip(frame.method, frame.angle)) == [(m, a) for m in ("kf", "danae") for a in ("roll", "yaw")]
+    assert frame.set_index(["method", "angle"]).loc[("danae", "yaw"), "rmse"] == out["danae"]["yaw"]["rmse"]
+
+    cmp = rep.comparison()
+    assert cmp.loc[("DANAE", "rmse"), ("yaw", "ours")] == out["danae"]["yaw"]["rmse"]
+    assert cmp.loc[("DANAE", "rmse"), ("yaw", "seed std")] == out["danae"]["yaw"]["rmse_std"]
+    assert cmp.loc[("KF", "max_dev"), ("roll", "paper")] == metrics.PAPER["oxiod"]["kf"]["max_dev"]["roll"]
+    red = rep.rmse_reduction()
+    assert red.loc["ours", "roll"] == pytest.approx(100 * (1 - out["danae"]["roll"]["rmse"] / out["kf"]["roll"]["rmse"]))
+    assert red.loc["paper", "mean"] == pytest.approx((65.4 + 45.0) / 2, abs=0.1)  # roll and yaw only
+    np.testing.assert_array_equal(rep.test_series("yaw", seed=1).danae,
+                                  np.concatenate([rep.study.predictions[("yaw", 1, "overlap")][r.name] for r in exp.test]))
+
+    series = rep.figure_series(seed=1)
+    assert list(series.columns) == ["time_s", "ground_truth", "kf", "danae"] and len(series) == len(recs[0])
+    np.testing.assert_array_equal(series.danae, rep.study.predictions[("roll", 1, "overlap")][recs[0].name])
+
+    written = rep.write(tmp_path / "out")
+    assert [p.name for p in written] == ["metrics.json", "metrics.csv", "seed_table.csv",
+                                        "figure1_roll.csv", "figure1_roll.png"]
+    assert json.loads(written[0].read_text()) == out  # floats survive JSON exactly
+    # a second run finds every network in the cache
+    again = pipeline.reproduce(exp, angles=("roll", "yaw"), seeds=(0, 1), config=cfg, progress=False,
+                               cache=tmp_path / "cache", log=None)
+    assert again.danae == rep.danae
+
+
+def test_reproduce_rejects_bad_arguments(recs):
+    from danae_lite.datasets import Experiment
+    from danae_lite.recording import DataError
+
+    exp = Experiment("oxiod", "simulated", recs[1:], recs[:1], "")
+    cfg = TrainConfig(max_steps=5, num_threads=1)
+    with pytest.raises(ValueError, match="seeds"):
+        pipeline.reproduce(exp, angles=("roll",), seeds=(0, 0), config=cfg, log=None)
+    with pytest.raises(ValueError, match="angles"):
+        pipeline.reproduce(exp, angles=("heading",), seeds=(0,), config=cfg, log=None)
+    short = Experiment("oxiod", "simulated", [recs[1].slice(0, 25)], recs[:1], "")
+    with pytest.raises(DataError, match="training recording"):
+        pipeline.reproduce(short, angles=("roll",), seeds=(0,), config=cfg, log=None)
