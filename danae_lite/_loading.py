@@ -15,7 +15,7 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from .recording import DataError, Recording
+from .recording import DataError
 
 
 def read_bytes(path: Path, what: str = "file") -> bytes:

@@ -33,7 +33,7 @@ one source off or changing its size leaves the draws of every other source uncha
 """
 from __future__ import annotations
 
-from dataclasses import asdict, dataclass, fields, replace
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np

@@ -55,6 +55,23 @@ T0 = 1_437_742_140_000_000_000  # ns
 FIELD_UT = 48.0 * np.array([np.cos(np.radians(60.0)), 0.0, -np.sin(np.radians(60.0))])
 
 
+def edit_line(path: Path, line: int, text: str | None) -> None:
+    """Replace (or delete, with None) the 1-based ``line`` of a text file."""
+    lines = path.read_text().splitlines()
+    if text is None:
+        del lines[line - 1]
+    else:
+        lines[line - 1] = text
+    path.write_text("\n".join(lines) + "\n")
+
+
+def edit_cell(path: Path, line: int, col: int, value: str) -> None:
+    """Replace the cell at 1-based ``line`` and 1-based ``col`` of a CSV file."""
+    fields = path.read_text().splitlines()[line - 1].split(",")
+    fields[col - 1] = value
+    edit_line(path, line, ",".join(fields))
+
+
 def ucs_signals(n: int = 300, fs: float = 10.2, seed: int = 0) -> dict[str, np.ndarray]:
     """Signals of a slowly rolling/pitching AUV in the file's units (acc m/s², mag gauss)."""
     rng = np.random.default_rng(seed)

@@ -2,7 +2,6 @@
 from __future__ import annotations
 
 import time
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -13,26 +12,7 @@ from scipy.spatial.transform import Rotation
 from danae_lite import DataError
 from danae_lite.oxiod import find_recordings, gt_glitch_summary, load_recording
 
-from conftest import synthetic_oxiod, write_rows
-
-
-def edit_cell(path: Path, line: int, col: int, value: str) -> None:
-    """Replace the cell at 1-based ``line`` and 1-based ``col`` of a CSV file."""
-    lines = path.read_text().splitlines()
-    fields = lines[line - 1].split(",")
-    fields[col - 1] = value
-    lines[line - 1] = ",".join(fields)
-    path.write_text("\n".join(lines) + "\n")
-
-
-def edit_line(path: Path, line: int, text: str | None) -> None:
-    """Replace (or delete, with None) the 1-based ``line`` of a file."""
-    lines = path.read_text().splitlines()
-    if text is None:
-        del lines[line - 1]
-    else:
-        lines[line - 1] = text
-    path.write_text("\n".join(lines) + "\n")
+from conftest import edit_cell, edit_line, synthetic_oxiod, write_rows
 
 
 def acc_angles(acc: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -110,31 +90,20 @@ def test_vi_wrong_column_count(tmp_oxiod):
         load_recording(tmp_oxiod.syn / "imu3.csv")
 
 
-def test_non_numeric_cell(tmp_oxiod):
-    edit_cell(tmp_oxiod.syn / "imu2.csv", 12, 8, "abc")
-    with pytest.raises(DataError, match=r"imu2\.csv: line 12, column 8 \(gravity x\):"
-                       r" expected a finite number, got 'abc'"):
-        load_recording(tmp_oxiod.syn / "imu2.csv")
-
-
-def test_empty_cell(tmp_oxiod):
-    edit_cell(tmp_oxiod.syn / "vi2.csv", 3, 6, "")
-    with pytest.raises(DataError, match=r"vi2\.csv: line 3, column 6 \(rotation x\):"
-                       r" expected a finite number, got an empty cell"):
-        load_recording(tmp_oxiod.syn / "imu2.csv")
-
-
-def test_nan_cell(tmp_oxiod):
-    edit_cell(tmp_oxiod.syn / "imu2.csv", 20, 14, "nan")
-    with pytest.raises(DataError, match=r"imu2\.csv: line 20, column 14 \(magnetic field x\):"
-                       r" expected a finite number, got 'nan'"):
-        load_recording(tmp_oxiod.syn / "imu2.csv")
-
-
-def test_inf_cell(tmp_oxiod):
-    edit_cell(tmp_oxiod.syn / "vi2.csv", 9, 9, "-inf")
-    with pytest.raises(DataError, match=r"vi2\.csv: line 9, column 9 \(rotation w\):"
-                       r" expected a finite number, got '-inf'"):
+@pytest.mark.parametrize(
+    "file, line, col, value, message",
+    [
+        ("imu2.csv", 12, 8, "abc", r"imu2\.csv: line 12, column 8 \(gravity x\): expected a finite number, got 'abc'"),
+        ("vi2.csv", 3, 6, "", r"vi2\.csv: line 3, column 6 \(rotation x\): expected a finite number, got an empty cell"),
+        ("imu2.csv", 20, 14, "nan",
+         r"imu2\.csv: line 20, column 14 \(magnetic field x\): expected a finite number, got 'nan'"),
+        ("vi2.csv", 9, 9, "-inf", r"vi2\.csv: line 9, column 9 \(rotation w\): expected a finite number, got '-inf'"),
+    ],
+    ids=["non-numeric", "empty", "nan", "inf"],
+)
+def test_bad_cell_is_named(tmp_oxiod, file, line, col, value, message):
+    edit_cell(tmp_oxiod.syn / file, line, col, value)
+    with pytest.raises(DataError, match=message):
         load_recording(tmp_oxiod.syn / "imu2.csv")
 
 

@@ -1,7 +1,6 @@
 """UCS (ADIS16480) loader: header names, units, accelerometer sign, validation and the 80/20 split."""
 from __future__ import annotations
 
-from pathlib import Path
 
 import numpy as np
 import pytest
@@ -9,15 +8,7 @@ import pytest
 from danae_lite import DataError
 from danae_lite.ucs import HEADER, load_recording, split_train_test
 
-from conftest import T0, UCS_HEADER, G, columns, ucs_signals, write_ucs
-
-
-def edit_cell(path: Path, line: int, col: int, value: str) -> None:
-    lines = path.read_text().splitlines()
-    fields = lines[line - 1].split(",")
-    fields[col - 1] = value
-    lines[line - 1] = ",".join(fields)
-    path.write_text("\n".join(lines) + "\n")
+from conftest import T0, UCS_HEADER, G, columns, edit_cell, ucs_signals, write_ucs
 
 
 @pytest.fixture
@@ -176,31 +167,19 @@ def test_wrong_column_count_on_a_row(ucs_path):
         load_recording(ucs_path)
 
 
-def test_non_numeric_cell(ucs_path):
-    edit_cell(ucs_path, 10, 16, "x")
-    with pytest.raises(DataError, match=r"imu_adis\.txt: line 10, column 16 \(field\.ay\):"
-                       r" expected a finite number, got 'x'"):
-        load_recording(ucs_path)
-
-
-def test_nan_cell(ucs_path):
-    edit_cell(ucs_path, 33, 8, "NaN")
-    with pytest.raises(DataError, match=r"imu_adis\.txt: line 33, column 8 \(field\.qy\):"
-                       r" expected a finite number, got 'NaN'"):
-        load_recording(ucs_path)
-
-
-def test_inf_cell(ucs_path):
-    edit_cell(ucs_path, 2, 19, "inf")
-    with pytest.raises(DataError, match=r"imu_adis\.txt: line 2, column 19 \(field\.gy\):"
-                       r" expected a finite number, got 'inf'"):
-        load_recording(ucs_path)
-
-
-def test_empty_cell(ucs_path):
-    edit_cell(ucs_path, 301, 12, "")
-    with pytest.raises(DataError, match=r"imu_adis\.txt: line 301, column 12 \(field\.mx\):"
-                       r" expected a finite number, got an empty cell"):
+@pytest.mark.parametrize(
+    "line, col, value, message",
+    [
+        (10, 16, "x", r"imu_adis\.txt: line 10, column 16 \(field\.ay\): expected a finite number, got 'x'"),
+        (33, 8, "NaN", r"imu_adis\.txt: line 33, column 8 \(field\.qy\): expected a finite number, got 'NaN'"),
+        (2, 19, "inf", r"imu_adis\.txt: line 2, column 19 \(field\.gy\): expected a finite number, got 'inf'"),
+        (301, 12, "", r"imu_adis\.txt: line 301, column 12 \(field\.mx\): expected a finite number, got an empty cell"),
+    ],
+    ids=["non-numeric", "nan", "inf", "empty"],
+)
+def test_bad_cell_is_named(ucs_path, line, col, value, message):
+    edit_cell(ucs_path, line, col, value)
+    with pytest.raises(DataError, match=message):
         load_recording(ucs_path)
 
 
