@@ -35,7 +35,7 @@ lab: $(STAMP)
 	$(BIN)/jupyter lab notebooks
 
 bench: $(STAMP)
-	$(BIN)/python benchmarks/kf_throughput.py
+	$(BIN)/python benchmarks/run.py --json _build/benchmarks.json
 
 clean:
 	rm -rf _build .pytest_cache .hypothesis

@@ -8,6 +8,7 @@ number, the 1-based column (and its name when known) and what was expected.
 from __future__ import annotations
 
 import io
+import re
 from collections.abc import Sequence
 from pathlib import Path
 
@@ -16,6 +17,11 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from .recording import DataError
+
+
+_DECIMAL = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?|[+-]?(?:inf|infinity|nan)", re.I)
+"""A plain decimal number (or inf/nan, rejected later as non-finite): what pandas' C parser reads.
+Python's ``float`` alone would also take ``1_0`` or non-ASCII digits such as ``'١٢'``."""
 
 
 def read_bytes(path: Path, what: str = "file") -> bytes:
@@ -110,10 +116,7 @@ def parse_numeric(path: Path, raw: bytes, ncols: int, *, skip: int = 0, usecols:
         fields = _line(raw, starts, ends, r).split(",")
         for j, c in enumerate(cols):
             cell = fields[c].strip()
-            try:
-                out[r, j] = float(cell)
-            except ValueError:
-                out[r, j] = np.nan
+            out[r, j] = float(cell) if _DECIMAL.fullmatch(cell) else np.nan
             if not np.isfinite(out[r, j]):
                 raise DataError(f"{_where(path, skip + r + 1, c, names)}: expected a finite number, "
                                 f"got {_describe(cell)}")

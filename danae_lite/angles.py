@@ -30,7 +30,9 @@ def wrap(angle: ArrayLike) -> NDArray[np.float64]:
     -3.141592653589793
     """
     a = np.asarray(angle, dtype=float)
-    return (a + np.pi) % (2.0 * np.pi) - np.pi
+    w = (a + np.pi) % (2.0 * np.pi) - np.pi
+    # rounding can give exactly +pi (e.g. for the float just below -pi): map it to -pi
+    return w - 2.0 * np.pi * (w >= np.pi)
 
 
 def angle_diff(a: ArrayLike, b: ArrayLike, wrapped: bool = True) -> NDArray[np.float64]:
@@ -43,12 +45,16 @@ def quat_to_euler(quat_xyzw: ArrayLike) -> NDArray[np.float64]:
     """Convert quaternions ``(N, 4)`` scalar-last to Euler ``(N, 3)`` (roll, pitch, yaw) [rad].
 
     Uses scipy's ``Rotation.as_euler("ZYX")`` (intrinsic yaw-pitch-roll) and reorders the
-    columns to (roll, pitch, yaw). Quaternions need not be unit norm (scipy normalises);
-    a zero quaternion raises ``ValueError``.
+    columns to (roll, pitch, yaw); roll and yaw are in [-pi, pi) (scipy's +pi becomes -pi).
+    Quaternions need not be unit norm (scipy normalises); a zero quaternion raises
+    ``ValueError``.
     """
     q = np.atleast_2d(np.asarray(quat_xyzw, dtype=float))
-    ypr = Rotation.from_quat(q).as_euler("ZYX")
-    return ypr[:, ::-1].copy()
+    rpy = Rotation.from_quat(q).as_euler("ZYX")[:, ::-1].copy()
+    # scipy returns roll and yaw in [-pi, pi]; keep the documented half-open [-pi, pi)
+    ends = rpy[:, [0, 2]]
+    rpy[:, [0, 2]] = np.where(ends >= np.pi, ends - 2.0 * np.pi, ends)
+    return rpy
 
 
 def euler_to_quat(euler_rpy: ArrayLike) -> NDArray[np.float64]:

@@ -98,8 +98,8 @@ def _seed(text: str) -> int:
         value = int(text)
     except ValueError:
         raise argparse.ArgumentTypeError(f"expected an integer seed, got {text!r}") from None
-    if value < 0:
-        raise argparse.ArgumentTypeError(f"seeds must be >= 0, got {value}")
+    if not 0 <= value < 2**32:
+        raise argparse.ArgumentTypeError(f"seeds must be between 0 and {2**32 - 1}, got {value}")
     return value
 
 
@@ -151,38 +151,63 @@ def build_parser() -> argparse.ArgumentParser:
         epilog=REPRODUCE_EPILOG,
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
-    rep.add_argument("--experiment", choices=tuple(EXPERIMENT_ANGLES), default="oxiod",
-                     help="dataset of the experiment: oxiod (roll, pitch, yaw; Table 1, Figure 1) or "
-                          "ucs (roll, pitch; Table 2, Figure 2). Default: oxiod")
-    rep.add_argument("--data-dir", metavar="DIR", default=None,
-                     help=f"folder holding oxiod/ and/or ucs/ in their original layout. Default: ${DATA_ENV}; "
-                          "without either the simulator stands in")
-    rep.add_argument("--train", metavar="FILE", nargs="+", default=None,
-                     help="training recordings (see 'data selection' below). Default: the experiment's "
-                          "training recordings in the data directory")
-    rep.add_argument("--test", metavar="FILE", nargs="+", default=None,
-                     help="test recordings (see 'data selection' below). Default: the experiment's test "
-                          "recordings in the data directory")
-    rep.add_argument("--seeds", metavar="SEED", nargs="+", type=_seed, default=list(DEFAULT_SEEDS),
-                     help="training seeds; one network per angle and seed. Default: 0 1 2")
-    rep.add_argument("--epochs", metavar="N", type=_positive_int, default=None,
-                     help=f"training epochs per network. Default: the paper's ({PAPER_EPOCHS['oxiod']} for oxiod, "
-                          f"{PAPER_EPOCHS['ucs']} for ucs), at most {FAST_EPOCHS} in fast mode")
-    rep.add_argument("--max-steps", metavar="N", type=_positive_int, default=None,
-                     help=f"cap on optimiser steps per network. Default: {FAST_MAX_STEPS} in fast mode, "
-                          "no cap otherwise")
-    rep.add_argument("--fast", action="store_true", default=None,
-                     help=f"fast mode: shorter recordings and fewer steps (see below). Default: ${FAST_ENV}, else off")
-    rep.add_argument("--device", metavar="DEV", default=None,
-                     help="torch device for training, e.g. cpu, cuda, cuda:1. Default: cuda when available, else cpu")
-    rep.add_argument("--threads", metavar="N", type=_positive_int, default=None,
-                     help="torch CPU threads. Default: half the usable cores, 1 to 4")
+    _add_common(rep, "reproduce")
     rep.add_argument("--save-models", action="store_true",
                      help="also write one checkpoint per angle and seed to OUT/models/. Default: off")
-    rep.add_argument("--out", metavar="DIR", default=None,
-                     help="output folder (created if needed; files in it are overwritten). "
-                          "Default: runs/reproduce-<experiment>")
+    lb = sub.add_parser(
+        "leaderboard",
+        help="run every baseline, library filter and DANAE on the same split and write one table",
+        description=("Fit every method (the paper's KF, a tuned KF, Butterworth and moving-average low-pass "
+                     "filters of the KF, a linear window map, Fusion, VQF, Madgwick, Mahony, RIANN and DANAE) on "
+                     "the training recordings, evaluate each on the test recordings (mean dev, max dev, RMSE "
+                     "[rad] per angle, errors wrapped to [-pi, pi), on all and on clean ground-truth samples) and "
+                     "write leaderboard.csv, leaderboard.json, leaderboard.png and each grid search."),
+        epilog=REPRODUCE_EPILOG.replace("reproduce --experiment oxiod", "leaderboard --experiment oxiod"),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
+    )
+    _add_common(lb, "leaderboard")
+    lb.add_argument("--methods", metavar="NAME", nargs="+", default=None, choices=_method_names(),
+                    help="methods to run (default: all): " + " ".join(_method_names()))
     return parser
+
+
+def _method_names() -> list[str]:
+    from .baselines import METHODS
+
+    return list(METHODS)
+
+
+def _add_common(p: argparse.ArgumentParser, command: str) -> None:
+    """Arguments shared by ``reproduce`` and ``leaderboard``."""
+    p.add_argument("--experiment", choices=tuple(EXPERIMENT_ANGLES), default="oxiod",
+                     help="dataset of the experiment: oxiod (roll, pitch, yaw; Table 1, Figure 1) or "
+                          "ucs (roll, pitch; Table 2, Figure 2). Default: oxiod")
+    p.add_argument("--data-dir", metavar="DIR", default=None,
+                     help=f"folder holding oxiod/ and/or ucs/ in their original layout. Default: ${DATA_ENV}; "
+                          "without either the simulator stands in")
+    p.add_argument("--train", metavar="FILE", nargs="+", default=None,
+                     help="training recordings (see 'data selection' below). Default: the experiment's "
+                          "training recordings in the data directory")
+    p.add_argument("--test", metavar="FILE", nargs="+", default=None,
+                     help="test recordings (see 'data selection' below). Default: the experiment's test "
+                          "recordings in the data directory")
+    p.add_argument("--seeds", metavar="SEED", nargs="+", type=_seed, default=list(DEFAULT_SEEDS),
+                     help="training seeds; one network per angle and seed. Default: 0 1 2")
+    p.add_argument("--epochs", metavar="N", type=_positive_int, default=None,
+                     help=f"training epochs per network. Default: the paper's ({PAPER_EPOCHS['oxiod']} for oxiod, "
+                          f"{PAPER_EPOCHS['ucs']} for ucs), at most {FAST_EPOCHS} in fast mode")
+    p.add_argument("--max-steps", metavar="N", type=_positive_int, default=None,
+                     help=f"cap on optimiser steps per network. Default: {FAST_MAX_STEPS} in fast mode, "
+                          "no cap otherwise")
+    p.add_argument("--fast", action="store_true", default=None,
+                     help=f"fast mode: shorter recordings and fewer steps (see below). Default: ${FAST_ENV}, else off")
+    p.add_argument("--device", metavar="DEV", default=None,
+                     help="torch device for training, e.g. cpu, cuda, cuda:1. Default: cuda when available, else cpu")
+    p.add_argument("--threads", metavar="N", type=_positive_int, default=None,
+                     help="torch CPU threads. Default: half the usable cores, 1 to 4")
+    p.add_argument("--out", metavar="DIR", default=None,
+                     help="output folder (created if needed; files in it are overwritten). "
+                          f"Default: runs/{command}-<experiment>")
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -200,9 +225,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     from .train import CheckpointError
 
     try:
-        return reproduce(args)
-    except (UsageError, DataError, CheckpointError, FileNotFoundError, NotADirectoryError,
-            IsADirectoryError, PermissionError) as err:
+        return leaderboard(args) if args.command == "leaderboard" else reproduce(args)
+    except (UsageError, DataError, CheckpointError, OSError) as err:
         print(f"{PROG} {args.command}: error: {_one_line(err)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
@@ -355,7 +379,7 @@ def _check_device(device: str | None) -> str:
 
 
 def _out_dir(args: argparse.Namespace) -> Path:
-    out_dir = Path(args.out if args.out is not None else f"runs/reproduce-{args.experiment}").expanduser()
+    out_dir = Path(args.out if args.out is not None else f"runs/{args.command}-{args.experiment}").expanduser()
     if out_dir.exists() and not out_dir.is_dir():
         raise UsageError(f"--out {out_dir}: exists and is not a folder")
     return out_dir
@@ -375,8 +399,8 @@ def _log(line: str) -> None:
     print(line, flush=True)
 
 
-def reproduce(args: argparse.Namespace) -> int:
-    """Run the ``reproduce`` subcommand (:func:`danae_lite.pipeline.reproduce`); returns the exit status."""
+def _prepare(args: argparse.Namespace) -> tuple[bool, list[int], str, Path, Any, TrainConfig]:
+    """Shared start of both subcommands: mode, seeds, device, output folder, data, training settings."""
     from .config import fast_mode
 
     try:
@@ -397,11 +421,19 @@ def reproduce(args: argparse.Namespace) -> int:
     from . import pipeline
 
     exp = load_data(args, fast)
-    angles = EXPERIMENT_ANGLES[args.experiment]
     if args.threads:
         torch.set_num_threads(args.threads)
     config = _train_config(args, fast, device)
     pipeline.check_lengths(exp, config)
+    return fast, seeds, device, out_dir, exp, config
+
+
+def reproduce(args: argparse.Namespace) -> int:
+    """Run the ``reproduce`` subcommand (:func:`danae_lite.pipeline.reproduce`); returns the exit status."""
+    from . import pipeline
+
+    fast, seeds, device, out_dir, exp, config = _prepare(args)
+    angles = EXPERIMENT_ANGLES[args.experiment]
 
     print(exp.note)
     print(f"experiment {exp.name} | data: {exp.data} | mode: {'fast' if fast else 'full'} | "
@@ -416,6 +448,33 @@ def reproduce(args: argparse.Namespace) -> int:
 
     _print_summary(rep)
     print("wrote " + ", ".join(str(p) for p in written))
+    return 0
+
+
+def leaderboard(args: argparse.Namespace) -> int:
+    """Run the ``leaderboard`` subcommand (:func:`danae_lite.leaderboard.run_leaderboard`)."""
+    import time
+
+    import pandas as pd
+
+    from .leaderboard import run_leaderboard
+
+    fast, seeds, device, out_dir, exp, config = _prepare(args)
+    methods = args.methods or _method_names()
+    print(exp.note)
+    print(f"leaderboard {exp.name} | data: {exp.data} | mode: {'fast' if fast else 'full'} | "
+          f"train {', '.join(r.name for r in exp.train)} | test {', '.join(r.name for r in exp.test)} | "
+          f"methods {' '.join(methods)} | DANAE seeds {' '.join(map(str, seeds))} | device {device}", flush=True)
+    t0 = time.perf_counter()
+    board = run_leaderboard(exp, methods=methods, seeds=seeds, train_config=config, progress=sys.stdout.isatty())
+    written = board.write(out_dir)
+    with pd.option_context("display.float_format", "{:.4f}".format, "display.width", 140):
+        for subset in ("all", "clean"):
+            print(f"\nRMSE [rad] on {subset} test samples (errors wrapped; DANAE: mean over seeds):")
+            print(board.wide("rmse", subset).to_string(na_rep="-"))
+    print(f"\nalignment: {board.alignment.summary()}")
+    print(f"time: {time.perf_counter() - t0:.1f} s; " + ", ".join(f"{k} {v:.1f} s" for k, v in board.seconds.items()))
+    print("wrote " + ", ".join(str(p) for p in written.values()))
     return 0
 
 

@@ -79,15 +79,12 @@ def gt_glitch_summary(quat: ArrayLike, fs: float, *, max_rate: float = 20.0, qui
                       min_frozen: int = 5) -> dict[str, object]:
     """Count ground-truth orientation glitches; the data is not changed.
 
-    Let ``d[i]`` be the rotation angle [rad] between samples i and i+1, and
-    ``thr = max_rate / fs`` (20 rad/s, i.e. 0.2 rad at 100 Hz, far above a hand's motion).
-
-    * step: ``d[i] > thr``.
-    * spike (single-sample excursion that comes back): sample i with ``d[i-1] > thr`` and
-      ``d[i] > thr`` while the rotation from i-1 to i+1 is below ``quiet_fraction * thr``.
-    * isolated jump: ``d[i] > thr`` while both neighbours ``d[i-1]`` and ``d[i+1]`` are below
-      ``quiet_fraction * thr``.
-    * frozen run: at least ``min_frozen`` consecutive samples with an identical quaternion.
+    A thin view of :func:`danae_lite.groundtruth.detect_glitches` without the gyro (its module
+    docstring states the rule): a step is a rotation between consecutive samples above
+    ``thr = max_rate / fs`` (20 rad/s, i.e. 0.2 rad at 100 Hz, far above a hand's motion); a
+    spike is a single sample out and back; an excursion goes out and comes back (to within
+    ``quiet_fraction * thr``) within 1 s; an isolated jump is a step that starts neither; a
+    frozen run is at least ``min_frozen`` consecutive identical quaternions.
 
     Parameters
     ----------
@@ -97,39 +94,33 @@ def gt_glitch_summary(quat: ArrayLike, fs: float, *, max_rate: float = 20.0, qui
     Returns
     -------
     dict with ``threshold_rad``, ``max_step_rad``, ``n_steps``, ``n_spikes``, ``spikes``
-    (sample indices), ``n_jumps``, ``jumps`` (index i of the step i -> i+1), ``n_frozen_runs``,
-    ``frozen_runs`` (list of (start, length)), ``frozen_samples``.
+    (sample indices), ``n_excursions``, ``excursions`` ((K, 2) bad [start, stop) ranges),
+    ``n_jumps``, ``jumps`` (index i of the step i -> i+1), ``n_frozen_runs``, ``frozen_runs``
+    (list of (start, length)), ``frozen_samples`` (their total length) and ``bad_samples``.
 
-    On handheld/data1 (steps / spikes / isolated jumps / frozen runs): imu2 12/2/4/2 (13 and 11
-    samples), imu3 13/1/8/1, imu4 8/0/4/1, imu7 15/0/13/0; the largest steps are 2.9-3.14 rad.
+    On handheld/data1 (steps / spikes / excursions / isolated jumps / frozen runs): imu2
+    12/2/0/7/2 (13 and 11 samples), imu3 13/1/1/9/1, imu4 8/0/1/6/1, imu7 15/0/3/9/0; the
+    largest steps are 2.9-3.14 rad. With the gyro, :func:`danae_lite.groundtruth.clean_mask`
+    pairs more of these steps into excursions.
     """
-    q = np.asarray(quat, dtype=float)
-    q = q / np.linalg.norm(q, axis=1, keepdims=True)
+    from .groundtruth import detect_glitches
 
-    def angle(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-        return 2.0 * np.arccos(np.clip(np.abs(np.sum(a * b, axis=1)), 0.0, 1.0))
-
-    thr = max_rate / fs
-    quiet = quiet_fraction * thr
-    d = angle(q[:-1], q[1:])
-    big = d > thr
-    skip = angle(q[:-2], q[2:])
-    spikes = np.flatnonzero(big[:-1] & big[1:] & (skip < quiet)) + 1
-    jumps = np.flatnonzero(big[1:-1] & (d[:-2] < quiet) & (d[2:] < quiet)) + 1
-    same = np.concatenate([[False], np.all(q[1:] == q[:-1], axis=1), [False]]).astype(np.int8)
-    edges = np.flatnonzero(np.diff(same))
-    runs = [(int(s), int(e - s + 1)) for s, e in zip(edges[::2], edges[1::2]) if e - s + 1 >= min_frozen]
+    r = detect_glitches(quat, fs, max_rate=max_rate, quiet_fraction=quiet_fraction, min_frozen=min_frozen)
+    runs = [(int(s), int(n)) for s, n in r.frozen]
     return {
-        "threshold_rad": float(thr),
-        "max_step_rad": float(d.max()) if d.size else 0.0,
-        "n_steps": int(big.sum()),
-        "n_spikes": int(spikes.size),
-        "spikes": spikes,
-        "n_jumps": int(jumps.size),
-        "jumps": jumps,
+        "threshold_rad": r.threshold_rad,
+        "max_step_rad": r.max_step_rad,
+        "n_steps": int(r.steps.size),
+        "n_spikes": int(r.spikes.size),
+        "spikes": r.spikes,
+        "n_excursions": int(len(r.excursions)),
+        "excursions": r.excursions,
+        "n_jumps": int(r.jumps.size),
+        "jumps": r.jumps,
         "n_frozen_runs": len(runs),
         "frozen_runs": runs,
         "frozen_samples": int(sum(n for _, n in runs)),
+        "bad_samples": r.n_bad,
     }
 
 

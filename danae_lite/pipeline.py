@@ -69,16 +69,41 @@ def train_angle(
     the same network loads it instead of training it again.
     """
     k = ANGLES.index(angle)
-    config = config or TrainConfig()
     inputs = [np.ascontiguousarray(estimates[r.name][:, k]) for r in train_recs]
     targets = [np.ascontiguousarray(r.euler[:, k]) for r in train_recs]
+    return train_cached(inputs, targets, config, tag=f"danae-{angle}", progress=progress, cache=cache,
+                        metadata={"angle": angle, "train": [r.name for r in train_recs]})
+
+
+def train_cached(
+    inputs: Sequence[NDArray[np.float64]],
+    targets: Sequence[NDArray[np.float64]],
+    config: TrainConfig | None = None,
+    *,
+    target_masks: Sequence[NDArray[np.bool_]] | None = None,
+    tag: str = "danae",
+    progress: bool = True,
+    cache: str | os.PathLike[str] | None = None,
+    metadata: dict[str, Any] | None = None,
+) -> TrainResult:
+    """:func:`danae_lite.train.train` with an on-disk cache.
+
+    The file is ``<cache>/<tag>-seed<seed>-<hash>.pt``, the hash covering the inputs, targets,
+    target masks, training settings and the source of the model/training code (not the
+    device or thread count). ``cache`` defaults to ``DANAE_CACHE`` (none when unset).
+    """
+    config = config or TrainConfig()
+    inputs = [np.ascontiguousarray(a) for a in inputs]
+    targets = [np.ascontiguousarray(a) for a in targets]
+    masks = None if target_masks is None else [np.ascontiguousarray(m, dtype=bool) for m in target_masks]
     folder = resolve_cache_dir(cache)
-    path = folder / f"danae-{angle}-seed{config.seed}-{_cache_key(inputs, targets, config)}.pt" if folder else None
+    key = _cache_key([*inputs, *(masks or [])], targets, config)
+    path = folder / f"{tag}-seed{config.seed}-{key}.pt" if folder else None
     if path is not None and path.is_file():
         return load_result(path)
-    res = train(inputs, targets, config, progress=progress)
+    res = train(inputs, targets, config, progress=progress, target_masks=masks)
     if path is not None:
-        save(res, path, metadata={"angle": angle, "train": [r.name for r in train_recs]})
+        save(res, path, metadata=metadata or {"tag": tag})
     return res
 
 

@@ -58,7 +58,7 @@ class TrainConfig:
 
     Attributes
     ----------
-    arch : {"paper", "big"}
+    arch : {"paper", "big", "causal"}
         Network, see :data:`danae_lite.model.ARCHITECTURES`.
     window : int
         Window length ``L`` in samples (20 in the paper).
@@ -105,6 +105,10 @@ class TrainConfig:
         Hard cap on optimiser steps (fast mode); ``None``: no cap.
     eval_batch_size : int
         Windows per forward pass for validation.
+    loss_start : int
+        First window position counted in the training and validation loss (0: all). A causal
+        network (``arch="causal"``) sees its full past only from position
+        ``receptive_field - 1`` on; counting only those positions trains it as it runs on-line.
     """
 
     arch: str = "paper"
@@ -129,6 +133,7 @@ class TrainConfig:
     normalize: str = "none"
     max_steps: int | None = None
     eval_batch_size: int = 4096
+    loss_start: int = 0
 
     def __post_init__(self) -> None:
         self.betas = tuple(float(b) for b in self.betas)  # type: ignore[assignment]
@@ -149,6 +154,8 @@ class TrainConfig:
             v = getattr(self, name)
             if v is not None and v < 1:
                 raise ValueError(f"{name} must be >= 1 or None, got {v}")
+        if not 0 <= self.loss_start < self.window:
+            raise ValueError(f"loss_start must be in [0, window={self.window}), got {self.loss_start}")
         if not self.lr > 0 or not self.loss_scale > 0:
             raise ValueError("lr and loss_scale must be positive")
 
@@ -253,6 +260,12 @@ def _split(
     return xs_tr, ys_tr, xs_va, ys_va
 
 
+def _valid_windows(masks: list[np.ndarray], window: int) -> np.ndarray:
+    """For the stride-1 windows of each recording (in :func:`_to_windows` order): True when
+    every target sample in the window is usable."""
+    return np.concatenate([sliding_windows(m, window).all(axis=1) for m in masks])
+
+
 def _to_windows(recs: list[np.ndarray], window: int, device: str) -> torch.Tensor:
     """Stride-1 windows of each recording, as a (n, C, L) float32 tensor."""
     w = windows_from_recordings(recs, window, stride=1)  # (n, L, C)
@@ -260,15 +273,16 @@ def _to_windows(recs: list[np.ndarray], window: int, device: str) -> torch.Tenso
 
 
 @torch.no_grad()
-def _mse(net: DanaeBase, x: torch.Tensor, y: torch.Tensor, batch_size: int) -> float:
-    """Mean squared error in raw units over all windows, samples and channels."""
+def _mse(net: DanaeBase, x: torch.Tensor, y: torch.Tensor, batch_size: int, start: int = 0) -> float:
+    """Mean squared error in raw units over all windows, samples ``>= start`` of each window and channels."""
     was_training = net.training
     net.eval()
     total = 0.0
     for i in range(0, len(x), batch_size):
-        total += float(((net(x[i : i + batch_size]) - y[i : i + batch_size]) ** 2).sum(dtype=torch.float64))
+        d = net(x[i : i + batch_size])[..., start:] - y[i : i + batch_size, :, start:]
+        total += float((d**2).sum(dtype=torch.float64))
     net.train(was_training)
-    return total / y.numel()
+    return total / y[..., start:].numel()
 
 
 def _default_threads() -> int:
@@ -310,6 +324,7 @@ def train(
     config: TrainConfig | None = None,
     *,
     progress: bool = True,
+    target_masks: np.ndarray | Sequence[np.ndarray] | None = None,
 ) -> TrainResult:
     """Train a DANAE network to map noisy angle windows to ground-truth windows.
 
@@ -324,6 +339,11 @@ def train(
         Defaults to ``TrainConfig()`` (the paper's settings plus a 10 % validation block).
     progress : bool
         Show a tqdm bar with the running training loss and the last validation loss.
+    target_masks : list of bool ndarray, each (N_i,), optional
+        True where the target is usable (e.g. :func:`danae_lite.groundtruth.clean_mask`).
+        Windows holding any unusable target sample are left out of training and
+        validation; the validation block is still the tail of each recording, so the split
+        does not depend on the mask. ``n_train_windows``/``n_val_windows`` count the windows kept.
 
     Returns
     -------
@@ -354,6 +374,15 @@ def train(
         if x.shape[1] != xs[0].shape[1] or y.shape[1] != ys[0].shape[1]:
             raise ValueError(f"recording {i}: channel count differs from recording 0")
 
+    masks: list[np.ndarray] | None = None
+    if target_masks is not None:
+        masks = [np.asarray(m) for m in _as_list(target_masks)]  # type: ignore[arg-type]
+        if len(masks) != len(xs):
+            raise ValueError(f"{len(masks)} target masks for {len(xs)} recordings")
+        for i, (m, x) in enumerate(zip(masks, xs)):
+            if m.dtype != bool or m.shape != (len(x),):
+                raise ValueError(f"target_masks[{i}]: expected a boolean array of shape ({len(x)},), got {m.dtype} {m.shape}")
+
     device = default_device(cfg.device)
     num_threads = cfg.num_threads or _default_threads()
     on_cpu = torch.device(device).type == "cpu"
@@ -361,9 +390,21 @@ def train(
     with _TorchSettings(num_threads, deterministic=on_cpu):
         seed_everything(cfg.seed)
         xs_tr, ys_tr, xs_va, ys_va = _split(xs, ys, cfg.window, cfg.val_fraction)
+        keep_tr = keep_va = None
+        if masks is not None:
+            _, ms_tr, _, ms_va = _split(xs, masks, cfg.window, cfg.val_fraction)
+            keep_tr = torch.from_numpy(_valid_windows(ms_tr, cfg.window))
+            keep_va = torch.from_numpy(_valid_windows(ms_va, cfg.window)) if ms_va else None
+            if not bool(keep_tr.any()):
+                raise ValueError("no training window is free of masked target samples")
+            # standardisation statistics from usable samples only
+            xs_stat = [x[m] for x, m in zip(xs_tr, ms_tr)]
+            ys_stat = [y[m] for y, m in zip(ys_tr, ms_tr)]
+        else:
+            xs_stat, ys_stat = xs_tr, ys_tr
         net = build_model(cfg.arch, in_channels=xs[0].shape[1], out_channels=ys[0].shape[1], **cfg.model_kwargs())
         if cfg.normalize == "standard":
-            xa, ya = np.concatenate(xs_tr), np.concatenate(ys_tr)
+            xa, ya = np.concatenate(xs_stat), np.concatenate(ys_stat)
             def _std(a: np.ndarray) -> np.ndarray:
                 s = a.std(axis=0, dtype=np.float64)
                 return np.where(s > 1e-12, s, 1.0)
@@ -371,12 +412,17 @@ def train(
         net = net.to(device)
 
         x_tr, y_tr = _to_windows(xs_tr, cfg.window, device), _to_windows(ys_tr, cfg.window, device)
+        if keep_tr is not None:
+            x_tr, y_tr = x_tr[keep_tr.to(device)], y_tr[keep_tr.to(device)]
         # the optimised loss lives in standardised units (identical to rad when normalize="none")
         x_tr_n = (x_tr - net.in_mean) / net.in_std
         y_tr_n = (y_tr - net.out_mean) / net.out_std
         has_val = bool(xs_va)
         if has_val:
             x_va, y_va = _to_windows(xs_va, cfg.window, device), _to_windows(ys_va, cfg.window, device)
+            if keep_va is not None:
+                x_va, y_va = x_va[keep_va.to(device)], y_va[keep_va.to(device)]
+                has_val = len(x_va) > 0
         n_train, n_val = len(x_tr), (len(x_va) if has_val else 0)
 
         steps_per_epoch = math.ceil(n_train / cfg.batch_size)
@@ -398,7 +444,7 @@ def train(
         def check() -> bool:
             """Log a history row; return True when training should stop early."""
             nonlocal loss_sum, loss_n, best_val, best_step, best_state, checks_since_best, last_val
-            val = _mse(net, x_va, y_va, cfg.eval_batch_size) if has_val else float("nan")
+            val = _mse(net, x_va, y_va, cfg.eval_batch_size, cfg.loss_start) if has_val else float("nan")
             rows.append(dict(step=step, epoch=step / steps_per_epoch,
                              train_loss=float(loss_sum) / max(loss_n, 1), val_loss=val))
             loss_sum, loss_n, last_val = 0.0, 0, val
@@ -419,7 +465,7 @@ def train(
             for i in range(0, n_train, cfg.batch_size):
                 idx = perm[i : i + cfg.batch_size]
                 out = net.forward_net(x_tr_n[idx])
-                mse = torch.mean((out - y_tr_n[idx]) ** 2)
+                mse = torch.mean((out[..., cfg.loss_start :] - y_tr_n[idx][..., cfg.loss_start :]) ** 2)
                 opt.zero_grad(set_to_none=True)
                 (cfg.loss_scale * mse).backward()
                 opt.step()

@@ -174,7 +174,7 @@ def load_recording(path: str | Path, *, name: str | None = None, units: Mapping[
     starts, ends = line_spans(raw)
     if starts.size == 0:
         raise DataError(f"{path}: empty file; expected a header row ({','.join(HEADER[:4])},...)")
-    header = raw[starts[0]:ends[0]].decode("utf-8", errors="replace").rstrip("\r").split(",")
+    header = raw[starts[0]:ends[0]].decode("utf-8-sig", errors="replace").rstrip("\r").split(",")
     index = {}
     for i, h in enumerate(header):
         index.setdefault(_key(h), i)

@@ -43,7 +43,9 @@ def big_params(c_in: int, c_out: int, h: int) -> int:
 
 
 def test_registry():
-    assert ARCHITECTURES == {"paper": DanaePaper, "big": DanaeBig}
+    from danae_lite.model import DanaeCausal
+
+    assert ARCHITECTURES == {"paper": DanaePaper, "big": DanaeBig, "causal": DanaeCausal}
     assert isinstance(build_model("paper"), DanaePaper)
     with pytest.raises(ValueError, match="unknown architecture"):
         build_model("wavenet")

@@ -1,0 +1,391 @@
+"""Every method of the leaderboard behind one interface: fit on training recordings, predict angles.
+
+A method is fitted on the training recordings only (its parameters chosen by a documented
+grid search there) and then predicts roll, pitch, yaw [rad] for any recording, in the ground
+truth's frame. All methods see the same inputs: recordings already rotated into the ground
+truth's body frame by a :class:`~danae_lite.alignment.FrameAlignment` estimated on the
+training recordings, and they all get the same heading correction (magnetic north -> the
+ground truth's x axis). Training objectives use clean ground-truth samples only
+(:mod:`danae_lite.groundtruth`).
+
+========================  =========================================================================
+name                      what it is / what is tuned on the training recordings
+========================  =========================================================================
+``paper_kf``              the paper's KF, untuned: P0 = Q = I6, R = I3, dt = 1/fs
+``tuned_kf``              the same KF with Q = diag(q_angle, q_bias) per angle and R = I; q_angle
+                          and q_bias from a grid, per angle (roll, pitch, yaw are independent)
+``butterworth``           the paper KF's output low-passed by a digital Butterworth filter
+                          (``scipy.signal.butter``, order 2, second-order sections, zero phase with
+                          ``sosfiltfilt``); cut-off [Hz] per angle from a grid
+``moving_average``        the paper KF's output through a centred moving average; length per angle
+``linear_map``            an affine map from each 20-sample window of the paper KF's angle to the
+                          20-sample truth window, least squares on the training windows; windows
+                          averaged back like DANAE's overlap reconstruction
+``fusion`` ``vqf``        library filters (:mod:`danae_lite.filters`), their main gain from a grid
+``madgwick`` ``mahony``   (objective: mean of the roll and pitch RMSE)
+``riann``                 RIANN's shipped network, nothing tuned; roll and pitch only (yaw NaN)
+``danae``                 the paper's DANAE (one network per angle and seed) on the paper KF's
+                          output; targets exclude ground-truth glitches
+========================  =========================================================================
+
+Angles handled on the circle: the post-processing methods work on the KF's angle unwrapped
+along the recording, and their training target is the truth moved next to it,
+``x + wrap(truth - x)``, so that no method is taught a 2π jump; outputs are wrapped to
+[-π, π) at the end. For roll and pitch this changes nothing.
+"""
+from __future__ import annotations
+
+import itertools
+import os
+from collections.abc import Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+from scipy import signal
+from scipy.ndimage import uniform_filter1d
+
+from . import filters, kalman
+from .alignment import FrameAlignment
+from .angles import ANGLES, wrap
+from .metrics import errors, rmse
+from .recording import Recording
+from .train import TrainConfig, predict
+from .windows import sliding_windows, stitch_overlap_average
+
+Array = NDArray[np.float64]
+
+METHODS: tuple[str, ...] = ("paper_kf", "tuned_kf", "butterworth", "moving_average", "linear_map",
+                            "fusion", "vqf", "madgwick", "mahony", "riann", "danae")
+"""Leaderboard method names, in table order."""
+
+KF_Q_ANGLE = (1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0)
+"""Grid of the tuned KF's angle process noise per step [rad²] (with R = 1 rad², only Q/R matters)."""
+KF_Q_BIAS = (0.0, 1e-12, 1e-10, 1e-8)
+"""Grid of the tuned KF's bias process noise per step [(rad/s)²]."""
+BUTTER_ORDER = 2
+"""Order of the Butterworth low-pass."""
+BUTTER_CUTOFFS_HZ = (0.02, 0.05, 0.1, 0.25, 0.5, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0)
+"""Grid of cut-off frequencies [Hz]; values at or above 0.8 x Nyquist are skipped."""
+MA_LENGTHS = (3, 5, 9, 15, 25, 41, 61, 101, 201, 401, 801)
+"""Grid of moving-average lengths [samples] (odd, so the average is centred)."""
+LINEAR_WINDOW = 20
+"""Window of the linear map [samples], DANAE's."""
+
+
+@dataclass
+class Context:
+    """What every method may use to fit: aligned training recordings and their clean masks."""
+
+    train: list[Recording]
+    """Training recordings, aligned (:meth:`FrameAlignment.apply`)."""
+    clean: dict[str, NDArray[np.bool_]]
+    """Clean ground-truth mask per recording name (test recordings too, for evaluation)."""
+    alignment: FrameAlignment
+    seeds: tuple[int, ...] = (0,)
+    """DANAE training seeds."""
+    train_config: TrainConfig = field(default_factory=TrainConfig)
+    """DANAE training settings (the seed is replaced per network)."""
+    cache: str | os.PathLike[str] | None = None
+    progress: bool = False
+
+
+def _truth(rec: Recording) -> Array:
+    return rec.euler
+
+
+def train_objective(est: dict[str, Array], ctx: Context, angles: Sequence[int]) -> Array:
+    """Clean-sample RMSE [rad] per angle index over all training recordings taken together."""
+    errs = [errors(est[r.name][ctx.clean[r.name]][:, angles], _truth(r)[ctx.clean[r.name]][:, angles])
+            for r in ctx.train]
+    return np.atleast_1d(rmse(np.concatenate(errs)))
+
+
+def _continuous(x: Array, truth: Array) -> Array:
+    """Truth moved next to ``x`` (``x + wrap(truth - x)``), so a target never jumps by 2π."""
+    return x + wrap(truth - x)
+
+
+class Method:
+    """Base class: ``fit(ctx)`` then ``predict(rec) -> list of (N, 3) [rad]`` (one per seed)."""
+
+    name = "method"
+    description = ""
+
+    def __init__(self) -> None:
+        self.params: dict[str, Any] = {}
+        """Chosen parameters (plain numbers)."""
+        self.search: pd.DataFrame | None = None
+        """The grid search on the training recordings: one row per candidate with its objective [rad]."""
+
+    def fit(self, ctx: Context) -> "Method":
+        self.ctx = ctx
+        return self
+
+    def predict(self, rec: Recording) -> list[Array]:
+        raise NotImplementedError
+
+
+class PaperKF(Method):
+    name = "paper_kf"
+    description = "the paper's KF, P0 = Q = I, R = I, dt = 1/fs"
+
+    def __init__(self, config: kalman.KFConfig | None = None) -> None:
+        super().__init__()
+        self.config = config or kalman.KFConfig()
+
+    def fit(self, ctx: Context) -> "PaperKF":
+        self.ctx = ctx
+        self.params = {"Q_diag": np.diag(self.config.Q).tolist(), "R_diag": np.diag(self.config.R).tolist()}
+        return self
+
+    def raw(self, rec: Recording) -> Array:
+        """KF estimate in the ground-truth frame, yaw NOT wrapped (continuous along the recording)."""
+        e = kalman.run_kf(rec, self.config).euler.copy()
+        e[:, 2] = e[:, 2] + self.ctx.alignment.north_yaw
+        return e
+
+    def predict(self, rec: Recording) -> list[Array]:
+        e = self.raw(rec)
+        e[:, 2] = wrap(e[:, 2])
+        return [e]
+
+
+class TunedKF(PaperKF):
+    name = "tuned_kf"
+    description = "the paper's KF with Q chosen per angle on the training recordings (R = I)"
+
+    def fit(self, ctx: Context) -> "TunedKF":
+        self.ctx = ctx
+        rows = []
+        for qa, qb in itertools.product(KF_Q_ANGLE, KF_Q_BIAS):
+            cfg = kalman.KFConfig(Q=[qa, qb] * 3)
+            est = {r.name: self.ctx.alignment.to_truth_frame(kalman.run_kf(r, cfg).euler) for r in ctx.train}
+            obj = train_objective(est, ctx, (0, 1, 2))
+            rows.append({"q_angle": qa, "q_bias": qb, **{f"rmse_{a}": float(v) for a, v in zip(ANGLES, obj)}})
+        self.search = pd.DataFrame(rows)
+        q = []
+        for a in ANGLES:
+            best = self.search.loc[self.search[f"rmse_{a}"].idxmin()]
+            self.params[a] = {"q_angle": float(best.q_angle), "q_bias": float(best.q_bias)}
+            q += [best.q_angle, best.q_bias]
+        self.config = kalman.KFConfig(Q=q)
+        return self
+
+
+def butterworth_lowpass(x: Array, cutoff_hz: float, fs: float, order: int = BUTTER_ORDER) -> Array:
+    """Zero-phase digital Butterworth low-pass along axis 0 (``butter(..., fs=fs, output="sos")``
+    + ``sosfiltfilt``). ``cutoff_hz`` [Hz] must be below the Nyquist frequency ``fs / 2``."""
+    if not 0.0 < cutoff_hz < fs / 2.0:
+        raise ValueError(f"cut-off {cutoff_hz} Hz must be in (0, {fs / 2.0}) Hz (Nyquist at fs = {fs} Hz)")
+    sos = signal.butter(order, cutoff_hz, btype="low", fs=fs, output="sos")
+    return signal.sosfiltfilt(sos, x, axis=0)
+
+
+def moving_average(x: Array, length: int) -> Array:
+    """Centred moving average of odd ``length`` [samples] along axis 0, edges repeating the end samples."""
+    if length < 1 or length % 2 == 0:
+        raise ValueError(f"moving-average length must be a positive odd number of samples, got {length}")
+    return uniform_filter1d(np.asarray(x, dtype=float), length, axis=0, mode="nearest")
+
+
+class _OnPaperKF(Method):
+    """Post-processing of the paper KF's output (continuous angles, truth frame)."""
+
+    def fit(self, ctx: Context) -> "_OnPaperKF":
+        self.ctx = ctx
+        self.kf = PaperKF().fit(ctx)
+        self.kf_train = {r.name: self.kf.raw(r) for r in ctx.train}
+        return self
+
+
+class _Smoother(_OnPaperKF):
+    grid_name = ""
+
+    def grid(self, fs: float) -> list[Any]:
+        raise NotImplementedError
+
+    def apply(self, x: Array, value: Any, fs: float) -> Array:
+        raise NotImplementedError
+
+    def fit(self, ctx: Context) -> "_Smoother":
+        super().fit(ctx)
+        fs = ctx.train[0].fs
+        rows = []
+        for v in self.grid(fs):
+            est = {name: self.apply(x, v, fs) for name, x in self.kf_train.items()}
+            obj = train_objective(est, ctx, (0, 1, 2))
+            rows.append({self.grid_name: v, **{f"rmse_{a}": float(o) for a, o in zip(ANGLES, obj)}})
+        self.search = pd.DataFrame(rows)
+        self.params = {a: float(self.search.loc[self.search[f"rmse_{a}"].idxmin(), self.grid_name]) for a in ANGLES}
+        return self
+
+    def predict(self, rec: Recording) -> list[Array]:
+        x = self.kf.raw(rec)
+        out = np.column_stack([self.apply(x[:, k], self._value(self.params[a]), rec.fs) for k, a in enumerate(ANGLES)])
+        out[:, 2] = wrap(out[:, 2])
+        return [out]
+
+    def _value(self, v: float) -> Any:
+        return v
+
+
+class Butterworth(_Smoother):
+    name = "butterworth"
+    description = f"paper KF + digital Butterworth low-pass, order {BUTTER_ORDER}, zero phase (sosfiltfilt)"
+    grid_name = "cutoff_hz"
+
+    def grid(self, fs: float) -> list[Any]:
+        return [c for c in BUTTER_CUTOFFS_HZ if c < 0.8 * fs / 2.0]
+
+    def apply(self, x: Array, value: Any, fs: float) -> Array:
+        return butterworth_lowpass(x, float(value), fs)
+
+
+class MovingAverage(_Smoother):
+    name = "moving_average"
+    description = "paper KF + centred moving average"
+    grid_name = "length"
+
+    def grid(self, fs: float) -> list[Any]:
+        return list(MA_LENGTHS)
+
+    def apply(self, x: Array, value: Any, fs: float) -> Array:
+        return moving_average(x, int(value))
+
+    def _value(self, v: float) -> Any:
+        return int(v)
+
+
+def fit_linear_map(inputs: Sequence[Array], targets: Sequence[Array], window: int = LINEAR_WINDOW,
+                   masks: Sequence[NDArray[np.bool_]] | None = None) -> Array:
+    """Least-squares affine map from input windows to target windows.
+
+    Returns ``W`` of shape (window + 1, window): ``y_window ≈ [x_window, 1] @ W``. Windows
+    (stride 1, never across recordings) holding a masked-out target sample are left out."""
+    xs, ys = [], []
+    for i, (x, y) in enumerate(zip(inputs, targets)):
+        wx, wy = sliding_windows(np.asarray(x, dtype=float), window), sliding_windows(np.asarray(y, dtype=float), window)
+        if masks is not None:
+            ok = sliding_windows(np.asarray(masks[i], dtype=bool), window).all(axis=1)
+            wx, wy = wx[ok], wy[ok]
+        xs.append(wx)
+        ys.append(wy)
+    X, Y = np.concatenate(xs), np.concatenate(ys)
+    if len(X) <= window:
+        raise ValueError(f"{len(X)} usable windows: too few to fit a {window + 1} x {window} affine map")
+    A = np.hstack([X, np.ones((len(X), 1))])
+    W, *_ = np.linalg.lstsq(A, Y, rcond=None)
+    return W
+
+
+def apply_linear_map(W: Array, x: Array) -> Array:
+    """Apply :func:`fit_linear_map`'s ``W`` to every stride-1 window of ``x`` (N,) and average the
+    overlapping window outputs back to (N,)."""
+    window = W.shape[1]
+    wx = sliding_windows(np.asarray(x, dtype=float), window)
+    pred = np.hstack([wx, np.ones((len(wx), 1))]) @ W
+    return stitch_overlap_average(pred[:, :, None], len(x))[:, 0]
+
+
+class LinearMap(_OnPaperKF):
+    name = "linear_map"
+    description = f"paper KF + affine least-squares map of {LINEAR_WINDOW}-sample windows (overlap average)"
+
+    def fit(self, ctx: Context) -> "LinearMap":
+        super().fit(ctx)
+        self.W = {}
+        for k, a in enumerate(ANGLES):
+            xs = [self.kf_train[r.name][:, k] for r in ctx.train]
+            ys = [_continuous(self.kf_train[r.name][:, k], _truth(r)[:, k]) for r in ctx.train]
+            self.W[a] = fit_linear_map(xs, ys, masks=[ctx.clean[r.name] for r in ctx.train])
+        self.params = {"window": LINEAR_WINDOW, "coefficients": (LINEAR_WINDOW + 1) * LINEAR_WINDOW}
+        return self
+
+    def predict(self, rec: Recording) -> list[Array]:
+        x = self.kf.raw(rec)
+        out = np.column_stack([apply_linear_map(self.W[a], x[:, k]) for k, a in enumerate(ANGLES)])
+        out[:, 2] = wrap(out[:, 2])
+        return [out]
+
+
+class LibraryFilter(Method):
+    """A filter of :data:`danae_lite.filters.FILTERS`, its grid searched on the training recordings."""
+
+    def __init__(self, name: str) -> None:
+        super().__init__()
+        if name not in filters.FILTERS:
+            raise ValueError(f"unknown filter {name!r}; choose one of {', '.join(filters.FILTERS)}")
+        self.name = name
+        self.spec = filters.FILTERS[name]
+        self.description = (self.spec.run.__doc__ or "").strip().split("\n")[0]
+
+    def run(self, rec: Recording, **params: Any) -> Array:
+        e = filters.filter_euler(self.name, rec.gyro, rec.acc, rec.mag, rec.fs, **params)
+        return self.ctx.alignment.to_truth_frame(e) if self.spec.has_yaw else e
+
+    def fit(self, ctx: Context) -> "LibraryFilter":
+        self.ctx = ctx
+        keys = list(self.spec.grid)
+        rows = []
+        for values in itertools.product(*(self.spec.grid[k] for k in keys)):
+            params = dict(zip(keys, values))
+            est = {r.name: self.run(r, **params) for r in ctx.train}
+            obj = train_objective(est, ctx, (0, 1))
+            rows.append({**params, "rmse_roll": float(obj[0]), "rmse_pitch": float(obj[1]),
+                         "objective": float(obj.mean())})
+        if rows:
+            self.search = pd.DataFrame(rows)
+            best = self.search.loc[self.search["objective"].idxmin()]
+            self.params = {k: (float(best[k]) if isinstance(best[k], (int, float, np.floating)) else best[k]) for k in keys}
+        return self
+
+    def predict(self, rec: Recording) -> list[Array]:
+        return [self.run(rec, **self.params)]
+
+
+class Danae(_OnPaperKF):
+    name = "danae"
+    description = "the paper's DANAE per angle on the paper KF's output, glitch-free targets"
+
+    def fit(self, ctx: Context) -> "Danae":
+        from .pipeline import train_cached
+
+        super().fit(ctx)
+        self.results: dict[tuple[str, int], Any] = {}
+        masks = [ctx.clean[r.name] for r in ctx.train]
+        for k, a in enumerate(ANGLES):
+            xs = [self.kf_train[r.name][:, k] for r in ctx.train]
+            ys = [_continuous(self.kf_train[r.name][:, k], _truth(r)[:, k]) for r in ctx.train]
+            for seed in ctx.seeds:
+                cfg = replace(ctx.train_config, seed=int(seed))
+                self.results[(a, int(seed))] = train_cached(
+                    xs, ys, cfg, target_masks=masks, tag=f"leaderboard-danae-{a}", progress=ctx.progress,
+                    cache=ctx.cache, metadata={"angle": a, "train": [r.name for r in ctx.train]})
+        cfg = ctx.train_config
+        self.params = {"arch": cfg.arch, "window": cfg.window, "lr": cfg.lr, "batch_size": cfg.batch_size,
+                       "epochs": cfg.epochs, "max_steps": cfg.max_steps, "seeds": list(ctx.seeds)}
+        self.seconds_training = float(sum(r.seconds for r in self.results.values()))
+        return self
+
+    def predict(self, rec: Recording) -> list[Array]:
+        x = self.kf.raw(rec)
+        out = []
+        for seed in self.ctx.seeds:
+            e = np.column_stack([predict(self.results[(a, int(seed))], x[:, k])[:, 0] for k, a in enumerate(ANGLES)])
+            e[:, 2] = wrap(e[:, 2])
+            out.append(e)
+        return out
+
+
+def make_method(name: str) -> Method:
+    """A fresh, unfitted method by leaderboard name (see :data:`METHODS`)."""
+    simple = {"paper_kf": PaperKF, "tuned_kf": TunedKF, "butterworth": Butterworth, "moving_average": MovingAverage,
+              "linear_map": LinearMap, "danae": Danae}
+    if name in simple:
+        return simple[name]()
+    if name in filters.FILTERS:
+        return LibraryFilter(name)
+    raise ValueError(f"unknown method {name!r}; choose from {', '.join(METHODS)}")

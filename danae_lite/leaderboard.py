@@ -1,0 +1,243 @@
+"""One leaderboard: every method on the same train/test split, on all and on clean samples.
+
+:func:`run_leaderboard` does, in order:
+
+1. find the ground-truth glitches of every recording (:func:`danae_lite.groundtruth.clean_mask`);
+2. estimate the sensor -> body rotation and the heading of magnetic north on the training
+   recordings only (:func:`danae_lite.alignment.estimate_alignment`) and rotate every
+   recording's sensors into the body frame;
+3. fit every method of :mod:`danae_lite.baselines` on the training recordings (its grid search
+   included) and predict the test recordings;
+4. compute the paper's metrics (mean dev, max dev, RMSE [rad], errors wrapped to [-π, π), yaw
+   included) on all test samples taken together, once on every sample and once on the clean
+   samples only. Methods with several seeds (DANAE) report the mean over seeds and the
+   standard deviation of the RMSE.
+
+:class:`Leaderboard` writes ``leaderboard.csv``, ``leaderboard.json`` and ``leaderboard.png``.
+"""
+from __future__ import annotations
+
+import json
+import os
+import time
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from . import metrics
+from .alignment import FrameAlignment, estimate_alignment
+from .angles import ANGLES
+from .baselines import METHODS, Context, Method, make_method
+from .datasets import Experiment
+from .groundtruth import clean_mask, glitch_table
+from .train import TrainConfig
+
+if TYPE_CHECKING:
+    import matplotlib.pyplot as plt
+
+CSV_COLUMNS: tuple[str, ...] = ("method", "samples", "angle", "mean_dev", "max_dev", "rmse", "rmse_std", "n")
+"""Columns of ``leaderboard.csv``; ``samples`` is "all" or "clean", metrics in rad, ``n`` the sample count."""
+SUBSETS: tuple[str, str] = ("all", "clean")
+
+
+@dataclass
+class Leaderboard:
+    """Result of :func:`run_leaderboard`."""
+
+    experiment: Experiment
+    table: pd.DataFrame
+    """Long table with :data:`CSV_COLUMNS` (one row per method, subset and angle)."""
+    methods: dict[str, Method]
+    """Fitted methods by name (their ``params`` and ``search``)."""
+    predictions: dict[str, dict[str, list[NDArray[np.float64]]]]
+    """``{method: {test recording: [(N, 3) euler, one per seed]}}`` [rad], ground-truth frame."""
+    alignment: FrameAlignment
+    glitches: pd.DataFrame
+    """:func:`danae_lite.groundtruth.glitch_table` of every recording (train and test)."""
+    clean: dict[str, NDArray[np.bool_]]
+    seconds: dict[str, float]
+    """Wall time per method (fit + predict) and ``total`` [s]."""
+    seeds: tuple[int, ...] = (0,)
+    train_config: TrainConfig = field(default_factory=TrainConfig)
+
+    def wide(self, metric: str = "rmse", samples: str = "clean") -> pd.DataFrame:
+        """Methods (rows, in :data:`METHODS` order) x angles (columns) of one metric [rad]."""
+        t = self.table[self.table.samples == samples]
+        out = t.pivot(index="method", columns="angle", values=metric)
+        order = [m for m in METHODS if m in out.index] + [m for m in out.index if m not in METHODS]
+        return out.loc[order, [a for a in ANGLES if a in out.columns]]
+
+    def best(self, angle: str, samples: str = "clean", exclude: Sequence[str] = ("danae",)) -> str:
+        """Name of the method with the lowest RMSE for ``angle`` (``exclude``: methods left out)."""
+        w = self.wide("rmse", samples)
+        w = w.drop(index=[m for m in exclude if m in w.index])
+        return str(w[angle].astype(float).idxmin())
+
+    def to_json(self) -> dict[str, Any]:
+        """``{"experiment", "data", "train", "test", "seeds", "alignment", "glitches", "methods", "seconds"}``;
+        ``methods[name]`` holds ``description``, ``params`` and ``all``/``clean``:
+        ``{angle: {mean_dev, max_dev, rmse, rmse_std, n}}`` [rad]."""
+        methods: dict[str, Any] = {}
+        for name, m in self.methods.items():
+            entry: dict[str, Any] = {"description": m.description, "params": _plain(m.params)}
+            for subset in SUBSETS:
+                rows = self.table[(self.table.method == name) & (self.table.samples == subset)]
+                entry[subset] = {r.angle: {k: (None if pd.isna(getattr(r, k)) else float(getattr(r, k)))
+                                           for k in ("mean_dev", "max_dev", "rmse", "rmse_std", "n")}
+                                 for r in rows.itertuples()}
+            methods[name] = entry
+        return {
+            "experiment": self.experiment.name,
+            "data": self.experiment.data,
+            "train": [r.name for r in self.experiment.train],
+            "test": [r.name for r in self.experiment.test],
+            "seeds": list(self.seeds),
+            "alignment": self.alignment.summary(),
+            "glitches": _plain(self.glitches.to_dict(orient="records")),
+            "methods": methods,
+            "seconds": {k: float(v) for k, v in self.seconds.items()},
+        }
+
+    def plot(self, ax: "plt.Axes | None" = None, samples: str = "clean") -> "plt.Figure":
+        """Grouped bars: RMSE [rad] per method and angle (log scale), on ``samples``."""
+        import matplotlib.pyplot as plt
+
+        from .plots import COLORS, use_style
+
+        use_style()
+        w = self.wide("rmse", samples)
+        if ax is None:
+            _, ax = plt.subplots(figsize=(10, 4.2))
+        x = np.arange(len(w))
+        width = 0.8 / len(w.columns)
+        colors = [COLORS.get("truth", "C0"), COLORS.get("kf", "C1"), COLORS.get("danae", "C2")]
+        for j, a in enumerate(w.columns):
+            ax.bar(x + (j - (len(w.columns) - 1) / 2) * width, w[a].astype(float), width, label=a,
+                   color=colors[j % len(colors)])
+        ax.set_xticks(x, w.index, rotation=30, ha="right")
+        ax.set_yscale("log")
+        ax.set_ylabel(f"RMSE [rad], {samples} samples")
+        ax.set_title(f"{self.experiment.name} ({self.experiment.data}): test {', '.join(r.name for r in self.experiment.test)}")
+        ax.legend(title="angle")
+        ax.grid(True, axis="y", which="both", alpha=0.3)
+        ax.figure.tight_layout()
+        return ax.figure
+
+    def write(self, out_dir: str | os.PathLike[str]) -> dict[str, Path]:
+        """Write ``leaderboard.csv``, ``leaderboard.json``, ``leaderboard.png`` and
+        ``search_<method>.csv`` (each grid search) into ``out_dir``; return the paths."""
+        import matplotlib.pyplot as plt
+
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        paths = {"csv": out / "leaderboard.csv", "json": out / "leaderboard.json", "png": out / "leaderboard.png"}
+        self.table.to_csv(paths["csv"], index=False, float_format="%.6g")
+        paths["json"].write_text(json.dumps(self.to_json(), indent=2) + "\n")
+        fig = self.plot()
+        fig.savefig(paths["png"], dpi=120)
+        plt.close(fig)
+        for name, m in self.methods.items():
+            if m.search is not None:
+                p = out / f"search_{name}.csv"
+                m.search.to_csv(p, index=False, float_format="%.6g")
+                paths[f"search_{name}"] = p
+        return paths
+
+
+def _plain(obj: Any) -> Any:
+    """JSON-able copy (numpy scalars/arrays to Python numbers/lists)."""
+    if isinstance(obj, dict):
+        return {str(k): _plain(v) for k, v in obj.items()}
+    if isinstance(obj, (list, tuple)):
+        return [_plain(v) for v in obj]
+    if isinstance(obj, np.ndarray):
+        return _plain(obj.tolist())
+    if isinstance(obj, (np.bool_, bool)):
+        return bool(obj)
+    if isinstance(obj, (np.integer,)):
+        return int(obj)
+    if isinstance(obj, (np.floating, float)):
+        return None if not np.isfinite(obj) else float(obj)
+    return obj
+
+
+def _rows(name: str, preds: dict[str, list[NDArray[np.float64]]], exp: Experiment,
+          clean: dict[str, NDArray[np.bool_]]) -> list[dict[str, Any]]:
+    truth = np.concatenate([r.euler for r in exp.test])
+    ok = np.concatenate([clean[r.name] for r in exp.test])
+    n_seeds = len(next(iter(preds.values())))
+    rows = []
+    for subset, sel in (("all", np.ones(len(truth), dtype=bool)), ("clean", ok)):
+        for k, a in enumerate(ANGLES):
+            per_seed = []
+            for s in range(n_seeds):
+                est = np.concatenate([preds[r.name][s][:, k] for r in exp.test])
+                if np.isnan(est).all():
+                    break
+                per_seed.append(metrics.metric_table(est[sel], truth[sel, k], angles=(a,))[a])
+            if not per_seed:
+                rows.append({"method": name, "samples": subset, "angle": a, "mean_dev": np.nan, "max_dev": np.nan,
+                             "rmse": np.nan, "rmse_std": np.nan, "n": int(sel.sum())})
+                continue
+            m = pd.concat(per_seed, axis=1)
+            rows.append({"method": name, "samples": subset, "angle": a,
+                         **{metric: float(m.loc[metric].mean()) for metric in metrics.METRICS},
+                         "rmse_std": float(m.loc["rmse"].std(ddof=1)) if len(per_seed) > 1 else np.nan,
+                         "n": int(sel.sum())})
+    return rows
+
+
+def run_leaderboard(
+    exp: Experiment,
+    *,
+    methods: Sequence[str] = METHODS,
+    seeds: Sequence[int] = (0, 1, 2),
+    train_config: TrainConfig | None = None,
+    cache: str | os.PathLike[str] | None = None,
+    progress: bool = True,
+) -> Leaderboard:
+    """Fit every method on ``exp.train`` and evaluate it on ``exp.test`` (see the module docstring).
+
+    Parameters
+    ----------
+    exp : the recordings (:func:`danae_lite.datasets.load_experiment` or the CLI's selection).
+    methods : names from :data:`danae_lite.baselines.METHODS`.
+    seeds : DANAE training seeds (one network per angle and seed).
+    train_config : DANAE settings; default the paper's (:class:`~danae_lite.train.TrainConfig`).
+    cache : trained-network cache folder (default ``DANAE_CACHE``).
+    progress : show a progress bar over the methods (and DANAE's training bars).
+    """
+    from tqdm.auto import tqdm
+
+    unknown = [m for m in methods if m not in METHODS]
+    if unknown:
+        raise ValueError(f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(METHODS)}")
+    t_total = time.perf_counter()
+    recs = [*exp.train, *exp.test]
+    clean = {r.name: clean_mask(r) for r in recs}
+    alignment = estimate_alignment(exp.train, [clean[r.name] for r in exp.train])
+    aligned_train = [alignment.apply(r) for r in exp.train]
+    aligned_test = [alignment.apply(r) for r in exp.test]
+    ctx = Context(train=aligned_train, clean=clean, alignment=alignment, seeds=tuple(int(s) for s in seeds),
+                  train_config=train_config or TrainConfig(), cache=cache, progress=progress)
+    fitted: dict[str, Method] = {}
+    preds: dict[str, dict[str, list[NDArray[np.float64]]]] = {}
+    seconds: dict[str, float] = {}
+    rows: list[dict[str, Any]] = []
+    for name in tqdm(list(methods), desc="leaderboard", unit="method", disable=not progress):
+        t0 = time.perf_counter()
+        m = make_method(name).fit(ctx)
+        preds[name] = {r.name: m.predict(r) for r in aligned_test}
+        seconds[name] = time.perf_counter() - t0
+        fitted[name] = m
+        rows += _rows(name, preds[name], exp, clean)
+    seconds["total"] = time.perf_counter() - t_total
+    table = pd.DataFrame(rows, columns=list(CSV_COLUMNS))
+    return Leaderboard(experiment=exp, table=table, methods=fitted, predictions=preds, alignment=alignment,
+                       glitches=glitch_table(recs), clean=clean, seconds=seconds, seeds=ctx.seeds,
+                       train_config=ctx.train_config)
