@@ -1,4 +1,8 @@
-"""Command line: ``python -m danae_lite reproduce`` runs the paper's experiment end to end.
+"""Command line: ``python -m danae_lite reproduce`` runs the paper's experiment end to end;
+``python -m danae_lite leaderboard`` runs every method of :mod:`danae_lite.baselines` on the
+same split (:func:`danae_lite.leaderboard.run_leaderboard`) and writes ``leaderboard.csv``,
+``leaderboard.json``, ``leaderboard.png`` and the grid searches into ``--out``. Both share the
+data flags below.
 
 The command parses arguments, resolves the data (:mod:`~danae_lite.datasets`,
 :mod:`~danae_lite.oxiod`, :mod:`~danae_lite.ucs`) and calls
