@@ -66,16 +66,18 @@ class Leaderboard:
     train_config: TrainConfig = field(default_factory=TrainConfig)
 
     def wide(self, metric: str = "rmse", samples: str = "clean") -> pd.DataFrame:
-        """Methods (rows, in :data:`METHODS` order) x angles (columns) of one metric [rad]."""
+        """Methods (rows: :data:`METHODS` order, then extra methods as run) x angles (columns) of one metric [rad]."""
         t = self.table[self.table.samples == samples]
         out = t.pivot(index="method", columns="angle", values=metric)
-        order = [m for m in METHODS if m in out.index] + [m for m in out.index if m not in METHODS]
+        order = [m for m in METHODS if m in out.index] + [m for m in dict.fromkeys(t.method) if m not in METHODS]
         return out.loc[order, [a for a in ANGLES if a in out.columns]]
 
-    def best(self, angle: str, samples: str = "clean", exclude: Sequence[str] = ("danae",)) -> str:
-        """Name of the method with the lowest RMSE for ``angle`` (``exclude``: methods left out)."""
+    def best(self, angle: str, samples: str = "clean", learned: bool = False) -> str:
+        """Name of the method with the lowest RMSE for ``angle``; with ``learned=False`` DANAE and
+        its variants (names starting with "danae") are left out, i.e. the best classical method."""
         w = self.wide("rmse", samples)
-        w = w.drop(index=[m for m in exclude if m in w.index])
+        if not learned:
+            w = w.drop(index=[m for m in w.index if m.startswith("danae")])
         return str(w[angle].astype(float).idxmin())
 
     def to_json(self) -> dict[str, Any]:
@@ -200,6 +202,7 @@ def run_leaderboard(
     train_config: TrainConfig | None = None,
     cache: str | os.PathLike[str] | None = None,
     progress: bool = True,
+    extra: Sequence[Method] = (),
 ) -> Leaderboard:
     """Fit every method on ``exp.train`` and evaluate it on ``exp.test`` (see the module docstring).
 
@@ -211,6 +214,8 @@ def run_leaderboard(
     train_config : DANAE settings; default the paper's (:class:`~danae_lite.train.TrainConfig`).
     cache : trained-network cache folder (default ``DANAE_CACHE``).
     progress : show a progress bar over the methods (and DANAE's training bars).
+    extra : further unfitted :class:`~danae_lite.baselines.Method` objects (e.g. the variants
+        of :mod:`danae_lite.variants`), fitted and evaluated after ``methods`` under their ``name``.
     """
     from tqdm.auto import tqdm
 
@@ -229,9 +234,14 @@ def run_leaderboard(
     preds: dict[str, dict[str, list[NDArray[np.float64]]]] = {}
     seconds: dict[str, float] = {}
     rows: list[dict[str, Any]] = []
-    for name in tqdm(list(methods), desc="leaderboard", unit="method", disable=not progress):
+    todo: list[Method | str] = [*methods, *extra]
+    names = [m if isinstance(m, str) else m.name for m in todo]
+    if len(set(names)) != len(names):
+        raise ValueError(f"method names must be unique, got {names}")
+    for item in tqdm(todo, desc="leaderboard", unit="method", disable=not progress):
         t0 = time.perf_counter()
-        m = make_method(name).fit(ctx)
+        m = (make_method(item) if isinstance(item, str) else item).fit(ctx)
+        name = m.name
         preds[name] = {r.name: m.predict(r) for r in aligned_test}
         seconds[name] = time.perf_counter() - t0
         fitted[name] = m

@@ -1,0 +1,140 @@
+"""DANAE beyond the paper: on any filter's output, with more input channels, yaw on the circle, causal.
+
+Every variant is a :class:`~danae_lite.baselines.Method`, so the leaderboard fits and
+evaluates it exactly like the baselines (``run_leaderboard(..., extra=[...])``).
+
+* **Filter agnostic.** ``DanaeOn(source="vqf")`` trains on the output of any leaderboard
+  filter instead of the paper's KF.
+* **Yaw on the circle.** Targets (and angle inputs) are ``(roll, pitch, sin yaw, cos yaw)``;
+  yaw comes back as ``atan2(sin, cos)``. A prediction never pays for the 2π jump, and one
+  network predicts all three angles jointly.
+* **Multi-input** (``inputs="multi"``, as the authors' follow-up DANAE++): the filter's
+  angles plus the accelerometer's roll and pitch, the tilt-compensated magnetic heading (as
+  sin/cos) and the Euler rates from the gyro — 11 channels, standardised per channel with the
+  training recordings' mean and std (``TrainConfig(normalize="standard")``).
+* **Causal** (``arch="causal"``): the network of :class:`~danae_lite.model.DanaeCausal`; each
+  output sample depends only on present and past inputs, so it runs on-line
+  (:class:`~danae_lite.streaming.StreamingDanae`). The features above are per-sample, so
+  causality is kept end to end when the source filter is causal.
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from . import kalman
+from .baselines import Context, Method, make_method
+from .recording import Recording
+from .train import TrainConfig, predict
+
+Array = NDArray[np.float64]
+
+ANGLE_CHANNELS: tuple[str, ...] = ("roll", "pitch", "sin yaw", "cos yaw")
+"""Channels of :func:`to_circle` (and of every variant's target)."""
+MULTI_CHANNELS: tuple[str, ...] = (*ANGLE_CHANNELS, "roll acc", "pitch acc", "sin yaw mag", "cos yaw mag",
+                                   "roll rate", "pitch rate", "yaw rate")
+"""Input channels of the multi-input variant: angles [rad, -], accelerometer tilt [rad],
+magnetic heading [-], Euler rates [rad/s]."""
+
+
+def to_circle(euler: Array) -> Array:
+    """(N, 3) roll, pitch, yaw [rad] -> (N, 4) roll, pitch, sin yaw, cos yaw. NaN yaw -> 0, 0."""
+    e = np.asarray(euler, dtype=float)
+    yaw = np.nan_to_num(e[:, 2], nan=0.0)
+    s, c = np.sin(yaw), np.cos(yaw)
+    if np.isnan(e[:, 2]).any():
+        s, c = np.where(np.isnan(e[:, 2]), 0.0, s), np.where(np.isnan(e[:, 2]), 0.0, c)
+    return np.column_stack([e[:, 0], e[:, 1], s, c])
+
+
+def from_circle(x: Array) -> Array:
+    """(N, 4) -> (N, 3): yaw = atan2(sin, cos) in (-pi, pi] (the vector need not be unit length)."""
+    x = np.asarray(x, dtype=float)
+    return np.column_stack([x[:, 0], x[:, 1], np.arctan2(x[:, 2], x[:, 3])])
+
+
+def multi_input(rec: Recording, est: Array, north_yaw: float) -> Array:
+    """The 11 channels of :data:`MULTI_CHANNELS` for an aligned recording and a filter's
+    estimate ``est`` (N, 3) [rad] in the ground-truth frame. The heading from the
+    magnetometer is tilt-compensated with the estimate's roll and pitch and turned to the
+    ground-truth frame with ``north_yaw`` [rad]; the Euler rates use the same roll and pitch."""
+    est = np.asarray(est, dtype=float)
+    tilt = kalman.accel_tilt(rec.acc)
+    heading = kalman.mag_heading(rec.mag, est[:, 0], est[:, 1]) + north_yaw
+    rates = kalman.euler_rates(rec.gyro, est[:, 0], est[:, 1])
+    return np.column_stack([to_circle(est), tilt, np.sin(heading), np.cos(heading), rates])
+
+
+class DanaeOn(Method):
+    """A DANAE variant trained on the output of leaderboard method ``source`` (see the module docstring).
+
+    Parameters
+    ----------
+    source : leaderboard method whose output is denoised ("paper_kf", "tuned_kf", "vqf", ...).
+    inputs : ``"angles"`` (the 4 circle channels) or ``"multi"`` (:data:`MULTI_CHANNELS`).
+    name : leaderboard name; default ``"danae[<source>]"`` / ``"danae-multi[<source>]"``
+        (``-causal`` appended for the causal architecture).
+    **train_overrides : fields of :class:`~danae_lite.train.TrainConfig` replacing the
+        context's settings (e.g. ``arch="causal", window=64, loss_start=30``).
+    """
+
+    def __init__(self, source: str = "paper_kf", inputs: str = "angles", name: str | None = None,
+                 **train_overrides: Any) -> None:
+        super().__init__()
+        if inputs not in ("angles", "multi"):
+            raise ValueError(f"inputs={inputs!r}: choose 'angles' or 'multi'")
+        self.source, self.inputs, self.overrides = source, inputs, train_overrides
+        causal = "-causal" if train_overrides.get("arch") == "causal" else ""
+        self.name = name or f"danae{'-multi' if inputs == 'multi' else ''}{causal}[{source}]"
+        self.description = (f"DANAE on {source}'s output, {len(self._channels())} input channels, "
+                            f"roll/pitch/yaw jointly with yaw as (sin, cos)")
+
+    def _channels(self) -> tuple[str, ...]:
+        return MULTI_CHANNELS if self.inputs == "multi" else ANGLE_CHANNELS
+
+    def _features(self, rec: Recording) -> Array:
+        (est,) = self.base.predict(rec)[:1]
+        if self.inputs == "multi":
+            return multi_input(rec, est, self.ctx.alignment.north_yaw)
+        return to_circle(est)
+
+    def config(self, seed: int) -> TrainConfig:
+        return replace(self.ctx.train_config, seed=int(seed), normalize="standard", **self.overrides)
+
+    def fit(self, ctx: Context) -> "DanaeOn":
+        from .pipeline import train_cached
+
+        self.ctx = ctx
+        self.base = make_method(self.source).fit(ctx)
+        if self.source == "danae":
+            raise ValueError("a DANAE variant cannot take DANAE's own output as its source")
+        xs = [self._features(r) for r in ctx.train]
+        ys = [to_circle(r.euler) for r in ctx.train]
+        masks = [ctx.clean[r.name] for r in ctx.train]
+        self.results = {}
+        for seed in ctx.seeds:
+            self.results[int(seed)] = train_cached(
+                xs, ys, self.config(seed), target_masks=masks, tag=f"variant-{self.name}", progress=ctx.progress,
+                cache=ctx.cache, metadata={"variant": self.name, "train": [r.name for r in ctx.train]})
+        cfg = self.config(ctx.seeds[0])
+        self.params = {"source": self.source, "inputs": list(self._channels()), "arch": cfg.arch,
+                       "window": cfg.window, "loss_start": cfg.loss_start, "seeds": list(ctx.seeds),
+                       "source_params": self.base.params}
+        return self
+
+    def predict(self, rec: Recording) -> list[Array]:
+        x = self._features(rec)
+        out = []
+        for seed in self.ctx.seeds:
+            res = self.results[int(seed)]
+            if res.config.arch == "causal":
+                from .streaming import predict_causal
+
+                y = predict_causal(res, x)
+            else:
+                y = predict(res, x)
+            out.append(from_circle(y))
+        return out

@@ -1,0 +1,76 @@
+"""DANAE variants: circle channels, multi-input features, fitting through the leaderboard, causality."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from danae_lite import kalman
+from danae_lite.datasets import Experiment
+from danae_lite.leaderboard import run_leaderboard
+from danae_lite.simulate import simulate
+from danae_lite.train import TrainConfig
+from danae_lite.variants import MULTI_CHANNELS, DanaeOn, from_circle, multi_input, to_circle
+
+
+def test_circle_round_trip_and_nan_yaw():
+    e = np.array([[0.1, -0.2, 3.1], [0.0, 0.0, -3.1], [0.3, 0.1, np.nan]])
+    c = to_circle(e)
+    np.testing.assert_allclose(c[:2, 2:], np.c_[np.sin(e[:2, 2]), np.cos(e[:2, 2])])
+    np.testing.assert_allclose(from_circle(c[:2]), e[:2])
+    np.testing.assert_allclose(c[2, 2:], [0.0, 0.0])
+    # scaled (sin, cos) vectors give the same yaw
+    np.testing.assert_allclose(from_circle(c[:2] * [1, 1, 3, 3])[:, 2], e[:2, 2])
+
+
+def test_multi_input_channels_by_hand():
+    rec = simulate("handheld", duration=5.0, seed=0)
+    est = rec.euler + 0.01
+    x = multi_input(rec, est, north_yaw=0.25)
+    assert x.shape == (len(rec), len(MULTI_CHANNELS))
+    np.testing.assert_allclose(x[:, 4:6], kalman.accel_tilt(rec.acc))
+    heading = kalman.mag_heading(rec.mag, est[:, 0], est[:, 1]) + 0.25
+    np.testing.assert_allclose(x[:, 6:8], np.c_[np.sin(heading), np.cos(heading)])
+    np.testing.assert_allclose(x[:, 8:], kalman.euler_rates(rec.gyro, est[:, 0], est[:, 1]))
+
+
+@pytest.fixture(scope="module")
+def board():
+    recs = [simulate("handheld", duration=20.0, seed=s, name=f"sim-{s}") for s in range(3)]
+    exp = Experiment("oxiod", "simulated", recs[1:], recs[:1], "variants")
+    cfg = TrainConfig(max_steps=5, num_threads=1)
+    extra = [DanaeOn("vqf"), DanaeOn("paper_kf", inputs="multi"),
+             DanaeOn("vqf", inputs="multi", arch="causal", hidden=16, window=40, loss_start=30)]
+    return run_leaderboard(exp, methods=["paper_kf", "vqf"], seeds=(0,), train_config=cfg, progress=False,
+                           extra=extra)
+
+
+def test_variants_are_evaluated_like_every_method(board):
+    w = board.wide("rmse", "clean")
+    assert list(w.index) == ["paper_kf", "vqf", "danae[vqf]", "danae-multi[paper_kf]", "danae-multi-causal[vqf]"]
+    assert np.isfinite(w.values).all()
+    assert board.best("roll") in ("paper_kf", "vqf")
+    assert board.methods["danae-multi-causal[vqf]"].params["loss_start"] == 30
+
+
+def test_causal_variant_never_reads_future_samples(board):
+    m = board.methods["danae-multi-causal[vqf]"]
+    rec = board.experiment.test[0]
+    aligned = board.alignment.apply(rec)
+    from danae_lite.streaming import predict_causal
+
+    x = m._features(aligned)
+    res = m.results[0]
+    y = predict_causal(res, x)
+    x2 = x.copy()
+    x2[300:] += np.random.default_rng(0).normal(0, 1.0, x2[300:].shape)
+    y2 = predict_causal(res, x2)
+    np.testing.assert_array_equal(y[:300], y2[:300])
+    assert not np.allclose(y[300:], y2[300:])
+
+
+def test_duplicate_names_and_danae_source_are_rejected(board):
+    with pytest.raises(ValueError, match="unique"):
+        run_leaderboard(board.experiment, methods=["paper_kf"], extra=[DanaeOn("paper_kf", name="paper_kf")],
+                        progress=False)
+    with pytest.raises(ValueError, match="inputs="):
+        DanaeOn("vqf", inputs="everything")
