@@ -158,3 +158,14 @@ def tmp_oxiod(tmp_path: Path) -> SimpleNamespace:
         write_rows(syn / f"vi{k}.csv", vi)
         out.imu[k], out.vi[k], out.euler[k] = imu, vi, euler
     return out
+
+
+@pytest.fixture
+def one_torch_thread():
+    """Small networks: one torch thread is fastest, and immune to oversubscribed cores."""
+    import torch
+
+    old = torch.get_num_threads()
+    torch.set_num_threads(1)
+    yield
+    torch.set_num_threads(old)

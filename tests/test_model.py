@@ -14,13 +14,7 @@ from danae_lite.model import (
 )
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    """Tiny networks: one torch thread is fastest, and immune to oversubscribed cores."""
-    old = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(old)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 PAPER_LENGTHS = [20, 16, 12, 2, 12, 12, 16, 16, 20, 20, 20]

@@ -18,13 +18,7 @@ from danae_lite.train import TrainConfig, TrainResult, load, load_result, save, 
 NOISE = 0.05  # rad
 
 
-@pytest.fixture(autouse=True)
-def one_thread():
-    """Small networks: one torch thread is fastest, and immune to oversubscribed cores."""
-    old = torch.get_num_threads()
-    torch.set_num_threads(1)
-    yield
-    torch.set_num_threads(old)
+pytestmark = pytest.mark.usefixtures("one_torch_thread")
 
 
 def walk(n: int, channels: int = 1, seed: int = 0) -> np.ndarray:
