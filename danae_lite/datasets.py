@@ -138,6 +138,21 @@ def load_experiment(name: str = "oxiod", data_dir: str | os.PathLike[str] | None
     return exp
 
 
+def simulated_experiment(name: str = "oxiod", *, fast: bool | None = None, seed: int = 0,
+                         verbose: bool = True) -> Experiment:
+    """The simulator's stand-in for ``"oxiod"`` (handheld scenario) or ``"ucs"`` (underwater),
+    whatever data directory is set: the same recordings :func:`load_experiment` falls back to."""
+    if name not in NAMES:
+        raise ValueError(f"unknown experiment {name!r}; valid: {', '.join(NAMES)}")
+    fast = fast_mode(fast)
+    exp = _simulated_oxiod(None, fast, seed) if name == "oxiod" else _simulated_ucs(None, fast, seed)
+    exp.note = exp.note.replace("No real OxIOD data found (DANAE_DATA unset): ", "Simulated: ").replace(
+        "No real UCS data found (DANAE_DATA unset): ", "Simulated: ")
+    if verbose:
+        print(exp.note)
+    return exp
+
+
 def _simulated_oxiod(base: Path | None, fast: bool, seed: int) -> Experiment:
     from .simulate import simulate
 

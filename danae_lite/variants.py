@@ -20,7 +20,7 @@ evaluates it exactly like the baselines (``run_leaderboard(..., extra=[...])``).
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -29,6 +29,9 @@ from . import kalman
 from .baselines import Context, Method, make_method
 from .recording import Recording
 from .train import TrainConfig, predict
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 Array = NDArray[np.float64]
 
@@ -138,3 +141,80 @@ class DanaeOn(Method):
                 y = predict(res, x)
             out.append(from_circle(y))
         return out
+
+
+# ---------------------------------------------------------------------------------------
+# the experiments of chapter 6, defined once for the book and the scripts
+# ---------------------------------------------------------------------------------------
+FILTER_SOURCES: tuple[str, ...] = ("paper_kf", "tuned_kf", "fusion", "vqf", "madgwick")
+"""Filters whose output DANAE is trained on in the filter-agnostic study."""
+CAUSAL_SETTINGS: dict[str, Any] = {"arch": "causal", "hidden": 64, "window": 64, "loss_start": 30}
+"""The causal variant: 64 channels, dilations 1-8 (receptive field 31 samples), trained on
+64-sample windows with the loss on positions 30-63 only, where the full past is inside the window."""
+
+
+def filter_agnostic() -> list[DanaeOn]:
+    """One DANAE per filter of :data:`FILTER_SOURCES` (4 angle channels in, 4 out)."""
+    return [DanaeOn(s) for s in FILTER_SOURCES]
+
+
+def multi_input_variants(sources: tuple[str, ...] = ("paper_kf", "vqf")) -> list[DanaeOn]:
+    """Multi-input DANAE (:data:`MULTI_CHANNELS`) on each source."""
+    return [DanaeOn(s, inputs="multi") for s in sources]
+
+
+def causal_variant(source: str = "vqf") -> DanaeOn:
+    """Multi-input causal DANAE on a causal filter (:data:`CAUSAL_SETTINGS`): it runs on-line."""
+    return DanaeOn(source, inputs="multi", **CAUSAL_SETTINGS)
+
+
+ABLATIONS: dict[str, dict[str, Any]] = {
+    "paper (baseline)": {},
+    "no skip sums": {"skip": False},
+    "no dilations": {"dilated": False},
+    "window 10 (no dilations)": {"window": 10, "dilated": False},
+    "window 40": {"window": 40},
+    "authors' deeper net (big)": {"arch": "big"},
+}
+"""Ablations of DANAE on the paper KF's output: label -> TrainConfig overrides. The paper's
+dilations need windows of at least 19 samples, so the 10-sample window runs without them."""
+
+
+def ablations() -> dict[str, DanaeOn]:
+    """label -> the variant (the baseline is ``DanaeOn("paper_kf")`` itself)."""
+    out = {}
+    for label, kw in ABLATIONS.items():
+        suffix = "" if not kw else " " + ",".join(f"{k}={v}" for k, v in kw.items())
+        out[label] = DanaeOn("paper_kf", name=f"danae[paper_kf]{suffix}", **kw)
+    return out
+
+
+def generalisation(scenarios: dict[str, Any], *, sources: tuple[str, ...] = ("paper_kf", "vqf"),
+                   seeds: tuple[int, ...] = (0,), train_config: TrainConfig | None = None,
+                   cache: Any = None, methods: tuple[str, ...] | None = None) -> "pd.DataFrame":
+    """Train on each scenario's training recordings, test on every scenario's test recordings.
+
+    ``scenarios`` maps a label to an :class:`~danae_lite.datasets.Experiment`. For each (train,
+    test) pair, the filters in ``sources`` and ``DanaeOn(source)`` are fitted on the training
+    side and evaluated on the test side (clean samples). Returns one row per pair, source and
+    angle: the filter's RMSE, DANAE's RMSE (mean over seeds) and the gain [%]
+    ``100 (1 - danae / filter)``; negative gain = the learned correction hurts.
+    """
+    import pandas as pd
+
+    from .datasets import Experiment
+    from .leaderboard import run_leaderboard
+
+    rows = []
+    for a, exp_a in scenarios.items():
+        for b, exp_b in scenarios.items():
+            exp = Experiment(exp_a.name, exp_a.data, exp_a.train, exp_b.test, f"train {a}, test {b}")
+            board = run_leaderboard(exp, methods=methods or sources, seeds=seeds, train_config=train_config,
+                                    cache=cache, progress=False, extra=[DanaeOn(s) for s in sources])
+            w = board.wide("rmse", "clean")
+            for s in sources:
+                for angle in ("roll", "pitch", "yaw"):
+                    f, d = float(w.loc[s, angle]), float(w.loc[f"danae[{s}]", angle])
+                    rows.append({"train": a, "test": b, "source": s, "angle": angle, "filter_rmse": f,
+                                 "danae_rmse": d, "gain_pct": 100.0 * (1.0 - d / f)})
+    return pd.DataFrame(rows)

@@ -114,3 +114,13 @@ def test_unknown_experiment():
 def test_missing_explicit_data_dir(tmp_path):
     with pytest.raises(FileNotFoundError):
         load_experiment("oxiod", tmp_path / "nowhere")
+
+
+def test_simulated_experiment_ignores_real_data(monkeypatch, tmp_path):
+    (tmp_path / "oxiod").mkdir()
+    monkeypatch.setenv("DANAE_DATA", str(tmp_path))
+    from danae_lite.datasets import simulated_experiment
+
+    exp = simulated_experiment("oxiod", fast=True, verbose=False)
+    assert exp.data == "simulated" and [r.name for r in exp.test] == ["sim-handheld-0"]
+    assert simulated_experiment("ucs", fast=True, verbose=False).data == "simulated"
