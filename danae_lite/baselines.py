@@ -348,6 +348,7 @@ class LibraryFilter(Method):
 
 class Danae(_OnPaperKF):
     name = "danae"
+    source = "paper_kf"
     description = "the paper's DANAE per angle on the paper KF's output, glitch-free targets"
 
     def fit(self, ctx: Context) -> "Danae":
