@@ -125,7 +125,7 @@ class Leaderboard:
         ax.set_yscale("log")
         ax.set_ylabel(f"RMSE [rad], {samples} samples")
         ax.set_title(f"{self.experiment.name} ({self.experiment.data}): test {', '.join(r.name for r in self.experiment.test)}")
-        ax.legend(title="angle")
+        ax.legend(title="angle", loc="upper left", bbox_to_anchor=(1.0, 1.0))
         ax.grid(True, axis="y", which="both", alpha=0.3)
         ax.figure.tight_layout()
         return ax.figure
