@@ -217,7 +217,10 @@ def run_leaderboard(
     extra : further unfitted :class:`~danae_lite.baselines.Method` objects (e.g. the variants
         of :mod:`danae_lite.variants`), fitted and evaluated after ``methods`` under their ``name``.
     """
-    from tqdm.auto import tqdm
+    if progress:  # the notebook widget when available
+        from tqdm.auto import tqdm
+    else:
+        from tqdm import tqdm
 
     unknown = [m for m in methods if m not in METHODS]
     if unknown:
