@@ -90,15 +90,20 @@ class Context:
     """DANAE training settings (the seed is replaced per network)."""
     cache: str | os.PathLike[str] | None = None
     progress: bool = False
+    fitted: dict[str, "Method"] = field(default_factory=dict)
+    """Methods already fitted on ``train`` by name, so that a method another one builds on
+    (e.g. a DANAE variant's source filter) is fitted, and grid-searched, only once."""
 
-
-def _truth(rec: Recording) -> Array:
-    return rec.euler
+    def method(self, name: str) -> "Method":
+        """The leaderboard method ``name`` fitted on this context (fitted once, then reused)."""
+        if name not in self.fitted:
+            self.fitted[name] = make_method(name).fit(self)
+        return self.fitted[name]
 
 
 def train_objective(est: dict[str, Array], ctx: Context, angles: Sequence[int]) -> Array:
     """Clean-sample RMSE [rad] per angle index over all training recordings taken together."""
-    errs = [errors(est[r.name][ctx.clean[r.name]][:, angles], _truth(r)[ctx.clean[r.name]][:, angles])
+    errs = [errors(est[r.name][ctx.clean[r.name]][:, angles], r.euler[ctx.clean[r.name]][:, angles])
             for r in ctx.train]
     return np.atleast_1d(rmse(np.concatenate(errs)))
 
@@ -196,7 +201,7 @@ class _OnPaperKF(Method):
 
     def fit(self, ctx: Context) -> "_OnPaperKF":
         self.ctx = ctx
-        self.kf = PaperKF().fit(ctx)
+        self.kf = ctx.method("paper_kf")
         self.kf_train = {r.name: self.kf.raw(r) for r in ctx.train}
         return self
 
@@ -299,7 +304,7 @@ class LinearMap(_OnPaperKF):
         self.W = {}
         for k, a in enumerate(ANGLES):
             xs = [self.kf_train[r.name][:, k] for r in ctx.train]
-            ys = [_continuous(self.kf_train[r.name][:, k], _truth(r)[:, k]) for r in ctx.train]
+            ys = [_continuous(self.kf_train[r.name][:, k], r.euler[:, k]) for r in ctx.train]
             self.W[a] = fit_linear_map(xs, ys, masks=[ctx.clean[r.name] for r in ctx.train])
         self.params = {"window": LINEAR_WINDOW, "coefficients": (LINEAR_WINDOW + 1) * LINEAR_WINDOW}
         return self
@@ -359,7 +364,7 @@ class Danae(_OnPaperKF):
         masks = [ctx.clean[r.name] for r in ctx.train]
         for k, a in enumerate(ANGLES):
             xs = [self.kf_train[r.name][:, k] for r in ctx.train]
-            ys = [_continuous(self.kf_train[r.name][:, k], _truth(r)[:, k]) for r in ctx.train]
+            ys = [_continuous(self.kf_train[r.name][:, k], r.euler[:, k]) for r in ctx.train]
             for seed in ctx.seeds:
                 cfg = replace(ctx.train_config, seed=int(seed))
                 self.results[(a, int(seed))] = train_cached(

@@ -108,12 +108,11 @@ def fusion(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs: float, *,
     ahrs.set_sample_period(1.0 / fs)
     g_deg = np.degrees(g)
     out = np.empty((len(g), 4))
-    update = ahrs.update if m is not None else None
     for i in range(len(g)):
-        if update is not None:
-            update(g_deg[i], a[i], m[i])
-        else:
+        if m is None:
             ahrs.update_no_magnetometer(g_deg[i], a[i])
+        else:
+            ahrs.update(g_deg[i], a[i], m[i])
         out[i] = ahrs.get_quaternion()
     return _wxyz_to_xyzw(out)
 

@@ -32,7 +32,7 @@ from numpy.typing import NDArray
 from . import metrics
 from .alignment import FrameAlignment, estimate_alignment
 from .angles import ANGLES
-from .baselines import METHODS, Context, Method, make_method
+from .baselines import METHODS, Context, Method
 from .datasets import Experiment
 from .groundtruth import clean_mask, glitch_table
 from .train import TrainConfig
@@ -243,7 +243,7 @@ def run_leaderboard(
         raise ValueError(f"method names must be unique, got {names}")
     for item in tqdm(todo, desc="leaderboard", unit="method", disable=not progress):
         t0 = time.perf_counter()
-        m = (make_method(item) if isinstance(item, str) else item).fit(ctx)
+        m = ctx.method(item) if isinstance(item, str) else item.fit(ctx)
         name = m.name
         preds[name] = {r.name: m.predict(r) for r in aligned_test}
         seconds[name] = time.perf_counter() - t0

@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import kalman
-from .baselines import Context, Method, make_method
+from .baselines import Context, Method
 from .recording import Recording
 from .train import TrainConfig, predict
 
@@ -46,11 +46,8 @@ magnetic heading [-], Euler rates [rad/s]."""
 def to_circle(euler: Array) -> Array:
     """(N, 3) roll, pitch, yaw [rad] -> (N, 4) roll, pitch, sin yaw, cos yaw. NaN yaw -> 0, 0."""
     e = np.asarray(euler, dtype=float)
-    yaw = np.nan_to_num(e[:, 2], nan=0.0)
-    s, c = np.sin(yaw), np.cos(yaw)
-    if np.isnan(e[:, 2]).any():
-        s, c = np.where(np.isnan(e[:, 2]), 0.0, s), np.where(np.isnan(e[:, 2]), 0.0, c)
-    return np.column_stack([e[:, 0], e[:, 1], s, c])
+    sc = np.nan_to_num(np.column_stack([np.sin(e[:, 2]), np.cos(e[:, 2])]), nan=0.0)
+    return np.column_stack([e[:, :2], sc])
 
 
 def from_circle(x: Array) -> Array:
@@ -110,10 +107,10 @@ class DanaeOn(Method):
     def fit(self, ctx: Context) -> "DanaeOn":
         from .pipeline import train_cached
 
-        self.ctx = ctx
-        self.base = make_method(self.source).fit(ctx)
         if self.source == "danae":
             raise ValueError("a DANAE variant cannot take DANAE's own output as its source")
+        self.ctx = ctx
+        self.base = ctx.method(self.source)
         xs = [self._features(r) for r in ctx.train]
         ys = [to_circle(r.euler) for r in ctx.train]
         masks = [ctx.clean[r.name] for r in ctx.train]
