@@ -11,7 +11,14 @@ Everything runs on one simulated recording (the simulator's hand-held scenario, 
 2. **DANAE training** -- steps/s and windows/s of the paper network (window 20) trained on
    the KF roll of the recording, at batch 16 and at batch 256 (only the optimiser steps are
    timed: ``TrainResult.seconds / steps``), on the CPU and, when available, on CUDA.
-3. **DANAE inference** -- whole-recording batched :func:`danae_lite.train.predict` (ms and
+3. **Training throughput against the physical limit** -- windows/s of the bare network step
+   (``DanaePaper`` forward + backward + Adam, batch 16, pre-cut windows, nothing else) beside
+   :func:`danae_lite.train.train` with the paper's settings on 50,000 windows, validation
+   included (``train_loop_windows_per_s``; their ratio is the loop's overhead), the time of
+   that whole paper-settings epoch (``paper_epoch_50k_s``), the arithmetic rate it achieves
+   (``train_gflops``: 3x the forward FLOPs per window, counted from the layer shapes) and
+   the machine's peak for a 2048x2048 float32 matmul on the same threads (``matmul_gflops``).
+4. **DANAE inference** -- whole-recording batched :func:`danae_lite.train.predict` (ms and
    µs per sample) and the streaming cost per sample: the paper network run once per new
    sample on the latest 20-sample window (batch 1, ``torch.no_grad``, 1 thread) -- this is
    ``danae_infer_ms_per_sample`` -- and, when :mod:`danae_lite.streaming` is present, the
@@ -24,7 +31,8 @@ Usage::
 
 ``--quick`` shrinks everything to a smoke test (well under 30 s). The device for DANAE is
 CUDA when ``torch.cuda.is_available()``, else the CPU; ``--device`` overrides. Torch threads
-are the package defaults (:mod:`danae_lite.train`), streaming uses 1 thread.
+are the process default (``torch.get_num_threads()``: every physical core unless
+``OMP_NUM_THREADS`` says otherwise; ``--threads`` overrides); streaming uses 1 thread.
 """
 from __future__ import annotations
 
@@ -55,6 +63,7 @@ from danae_lite import filters
 from danae_lite.config import default_device
 from danae_lite.kalman import KFConfig, run_kf
 from danae_lite.simulate import simulate
+from danae_lite.model import DanaePaper
 from danae_lite.train import TrainConfig, _default_threads, predict, train
 
 KF_TARGET = 250_000.0
@@ -129,7 +138,7 @@ def machine_info() -> dict[str, Any]:
 def device_label(device: str) -> str:
     if torch.device(device).type == "cuda":
         return f"cuda ({torch.cuda.get_device_name(torch.device(device))})"
-    return f"cpu ({usable_cores()} cores, torch {_default_threads()} thread(s) by package default, {cpu_model()})"
+    return f"cpu ({usable_cores()} cores, torch {_default_threads()} thread(s), {cpu_model()})"
 
 
 def best_of(fn: Callable[[], object], repeats: int) -> tuple[float, float]:
@@ -164,10 +173,12 @@ def sizes(quick: bool) -> dict[str, Any]:
     if quick:
         return dict(duration=100.0, kf_repeats=2, fast_repeats=2, slow_samples=500, slow_repeats=1,
                     steps={16: 10, 256: 3}, predict_samples=2000, stream_n=50, stream_warmup=5,
-                    causal_steps=5, causal_hidden=(32,), causal_n=100, causal_warmup=10)
+                    causal_steps=5, causal_hidden=(32,), causal_n=100, causal_warmup=10,
+                    bare_steps=20, epoch_windows=2_000, matmul_n=256, predict_100k=2_000)
     return dict(duration=1000.0, kf_repeats=5, fast_repeats=5, slow_samples=20_000, slow_repeats=3,
                 steps={16: 300, 256: 40}, predict_samples=None, stream_n=1000, stream_warmup=50,
-                causal_steps=50, causal_hidden=(32, 128), causal_n=2000, causal_warmup=100)
+                causal_steps=50, causal_hidden=(32, 128), causal_n=2000, causal_warmup=100,
+                bare_steps=600, epoch_windows=50_000, matmul_n=2048, predict_100k=100_000)
 
 
 # --------------------------------------------------------------------------------------
@@ -236,6 +247,106 @@ def bench_training(x: np.ndarray, y: np.ndarray, devices: Sequence[str], sz: dic
     return out, keep
 
 
+def forward_flops(net: Any, window: int) -> int:
+    """Floating-point operations of one forward pass over one window (2 per multiply-add),
+    counted from the shapes of the (transposed) convolutions."""
+    macs = 0
+
+    def hook(m: Any, inp: Any, out: Any) -> None:
+        nonlocal macs
+        c_in = m.in_channels // m.groups
+        macs += out.shape[1] * out.shape[2] * c_in * m.kernel_size[0]
+
+    convs = [m for m in net.modules() if isinstance(m, (torch.nn.Conv1d, torch.nn.ConvTranspose1d))]
+    handles = [m.register_forward_hook(hook) for m in convs]
+    try:
+        with torch.no_grad():
+            net(torch.zeros(1, net.in_channels, window))
+    finally:
+        for h in handles:
+            h.remove()
+    # a transposed convolution's output sample sums over its kernel taps that land on it; with
+    # stride 1 each output sample still takes c_in * k products (edge samples fewer: an upper bound)
+    return 2 * macs
+
+
+def matmul_peak(n: int, device: str, seconds: float = 2.0) -> dict[str, Any]:
+    """GFLOP/s of an n x n float32 matmul (best of repeated timings over ``seconds``)."""
+    a = torch.randn(n, n, device=device)
+    b = torch.randn(n, n, device=device)
+    sync = torch.cuda.synchronize if torch.device(device).type == "cuda" else (lambda: None)
+    a @ b
+    sync()
+    best, t_end = math.inf, time.perf_counter() + seconds
+    while time.perf_counter() < t_end:
+        t0 = time.perf_counter()
+        a @ b
+        sync()
+        best = min(best, time.perf_counter() - t0)
+    return dict(n=n, best_s=best, gflops=2 * n**3 / best / 1e9, threads=torch.get_num_threads())
+
+
+def bench_throughput(x: np.ndarray, y: np.ndarray, device: str, sz: dict[str, Any]) -> dict[str, Any]:
+    """The bare network step beside train.train, the achieved GFLOP/s beside the matmul peak."""
+    window, batch = 20, 16
+    # -- bare step: pre-cut windows, forward + backward + Adam, nothing else
+    torch.manual_seed(0)
+    net = DanaePaper(window=window).to(device)
+    fused = torch.device(device).type in ("cpu", "cuda")
+    opt = torch.optim.Adam(net.parameters(), lr=0.002, fused=fused)
+    n_win = len(x) - window + 1
+    idx_all = np.arange(window)[None, :] + np.arange(n_win)[:, None]
+    xw = torch.from_numpy(x.astype(np.float32)[idx_all][:, None, :]).to(device)
+    yw = torch.from_numpy(y.astype(np.float32)[idx_all][:, None, :]).to(device)
+    gen = torch.Generator().manual_seed(0)
+    sync = torch.cuda.synchronize if torch.device(device).type == "cuda" else (lambda: None)
+
+    def steps(n: int) -> None:
+        for _ in range(n):
+            idx = torch.randint(0, n_win, (batch,), generator=gen).to(device)
+            loss = torch.mean((net.forward_net(xw[idx]) - yw[idx]) ** 2)
+            opt.zero_grad(set_to_none=True)
+            loss.backward()
+            opt.step()
+        sync()
+
+    steps(max(5, sz["bare_steps"] // 10))  # warm-up
+    t0 = time.perf_counter()
+    steps(sz["bare_steps"])
+    bare_s = time.perf_counter() - t0
+    bare_wps = sz["bare_steps"] * batch / bare_s
+    log(f"  bare step ({device}, batch {batch}): {sz['bare_steps'] / bare_s:,.1f} steps/s = {bare_wps:,.0f} windows/s")
+
+    # -- train.train, paper settings (validation included) on a block giving epoch_windows windows
+    n = sz["epoch_windows"] + window - 1
+    while n - max(window, int(round(0.1 * n))) - window + 1 < sz["epoch_windows"]:
+        n += 1
+    n = min(n, len(x))
+    cfg = TrainConfig(device=device)  # the paper's settings + 10 % validation, ten checks per epoch
+    t0 = time.perf_counter()
+    res = train(x[:n], y[:n], cfg, progress=False)
+    epoch_s = time.perf_counter() - t0
+    loop_wps = res.n_train_windows / res.seconds
+    log(f"  train.train (paper settings, {res.n_train_windows:,} training + {res.n_val_windows:,} validation "
+        f"windows, {len(res.history)} checks): {res.steps / res.seconds:,.1f} steps/s = {loop_wps:,.0f} windows/s "
+        f"(loop/bare = {loop_wps / bare_wps:.2f}); whole call {epoch_s:.1f} s")
+
+    flops_fwd = forward_flops(net, window)
+    train_gflops = 3 * flops_fwd * loop_wps / 1e9
+    peak = matmul_peak(sz["matmul_n"], device)
+    log(f"  forward {flops_fwd / 1e6:.1f} MFLOP per window; training achieves {train_gflops:,.1f} GFLOP/s "
+        f"(bare {3 * flops_fwd * bare_wps / 1e9:,.1f}) vs matmul peak {peak['gflops']:,.1f} GFLOP/s "
+        f"on {peak['threads']} thread(s): {train_gflops / peak['gflops']:.2f} of the peak")
+    return dict(device=device, batch_size=batch, threads=torch.get_num_threads() if device == "cpu" else None,
+                bare_steps=sz["bare_steps"], bare_seconds=bare_s, bare_windows_per_s=bare_wps,
+                loop_windows_per_s=loop_wps, loop_over_bare=loop_wps / bare_wps,
+                epoch_windows=res.n_train_windows, val_windows=res.n_val_windows, checks=len(res.history),
+                epoch_steps=res.steps, epoch_loop_seconds=res.seconds, epoch_call_seconds=epoch_s,
+                forward_flops_per_window=flops_fwd, train_gflops=train_gflops,
+                bare_gflops=3 * flops_fwd * bare_wps / 1e9, matmul=peak,
+                train_over_peak=train_gflops / peak["gflops"])
+
+
 @torch.no_grad()
 def paper_stream(net: Any, x: np.ndarray, n: int, warmup: int) -> dict[str, Any]:
     """Per-sample cost of one forward pass of the paper network over the latest window."""
@@ -275,6 +386,13 @@ def bench_inference(result: Any, x: np.ndarray, y: np.ndarray, sz: dict[str, Any
                           threads=_default_threads() if result.device == "cpu" else None)
     log(f"  predict (batched, {result.device}): {sec * 1e3:,.0f} ms for {len(xp):,} samples = "
         f"{sec * 1e6 / len(xp):.1f} µs/sample")
+
+    # predict over a 100k-sample recording (the headline inference time)
+    n100 = min(len(x), sz["predict_100k"])
+    t0 = time.perf_counter()
+    predict(result, x[:n100])
+    out["predict_100k"] = dict(samples=n100, seconds=time.perf_counter() - t0, device=result.device)
+    log(f"  predict over {n100:,} samples: {out['predict_100k']['seconds']:.2f} s")
 
     # streaming with the paper network: one 20-sample window per new sample
     ps = paper_stream(result.model, x, sz["stream_n"], sz["stream_warmup"])
@@ -339,6 +457,15 @@ def summary(r: dict[str, Any]) -> dict[str, Any]:
     if "cuda" in tr:
         s["danae_train_steps_per_s_cuda"] = tr["cuda"]["16"]["steps_per_s"]
         s["danae_train_steps_per_s_b256_cuda"] = tr["cuda"]["256"]["steps_per_s"]
+    th = r["throughput"]
+    s["train_bare_windows_per_s"] = th["bare_windows_per_s"]
+    s["train_loop_windows_per_s"] = th["loop_windows_per_s"]
+    s["train_loop_over_bare"] = th["loop_over_bare"]
+    s["train_gflops"] = th["train_gflops"]
+    s["matmul_gflops"] = th["matmul"]["gflops"]
+    s["train_over_matmul_peak"] = th["train_over_peak"]
+    s["paper_epoch_50k_s"] = th["epoch_call_seconds"]
+    s["predict_100k_s"] = inf["predict_100k"]["seconds"]
     s["danae_predict_ms_total"] = inf["predict"]["ms_total"]
     s["danae_predict_us_per_sample"] = inf["predict"]["us_per_sample"]
     s["danae_predict_samples"] = inf["predict"]["samples"]
@@ -369,6 +496,17 @@ def table(r: dict[str, Any]) -> str:
         for batch, t in per_batch.items():
             rows.append((f"DANAE training, batch {batch} ({device})", f"{t['steps_per_s']:.2f} steps/s",
                          f"{t['windows_per_s']:,.0f} windows/s"))
+    th = r["throughput"]
+    rows.append((f"bare network step, batch 16 ({th['device']})", f"{th['bare_windows_per_s']:,.0f} windows/s",
+                 f"{th['bare_gflops']:,.1f} GFLOP/s"))
+    rows.append(("train.train, paper settings + validation", f"{th['loop_windows_per_s']:,.0f} windows/s",
+                 f"loop/bare = {th['loop_over_bare']:.2f} (target >= 0.8)"))
+    rows.append(("training arithmetic rate", f"{th['train_gflops']:,.1f} GFLOP/s",
+                 f"matmul peak {th['matmul']['gflops']:,.1f} GFLOP/s: {th['train_over_peak']:.2f} of it"))
+    rows.append((f"paper epoch, {th['epoch_windows']:,} windows (validation included)",
+                 f"{th['epoch_call_seconds']:.1f} s", f"{th['epoch_steps']} steps, {th['checks']} checks"))
+    rows.append((f"predict over {inf['predict_100k']['samples']:,} samples", f"{inf['predict_100k']['seconds']:.2f} s",
+                 "every stride-1 window, overlap-averaged"))
     p = inf["predict"]
     rows.append((f"DANAE predict, whole recording ({p['device']})", f"{p['ms_total']:,.0f} ms",
                  f"{p['us_per_sample']:.1f} µs/sample, {p['samples']:,} samples"))
@@ -392,7 +530,13 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     parser.add_argument("--quick", action="store_true", help="tiny sizes: a smoke test of a few seconds")
     parser.add_argument("--device", default=None,
                         help="device for DANAE training/inference (default: cuda when available, else cpu)")
+    parser.add_argument("--threads", type=int, default=None,
+                        help="torch CPU threads (default: torch's own, every physical core)")
     args = parser.parse_args(argv)
+    if args.threads is not None:
+        if args.threads < 1:
+            parser.error(f"--threads must be >= 1, got {args.threads}")
+        torch.set_num_threads(args.threads)
 
     t_start = time.perf_counter()
     sz = sizes(args.quick)
@@ -408,7 +552,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     log(f"\n[recording] simulate('handheld', duration={sz['duration']:g}, seed=0): {len(rec):,} samples at "
         f"{rec.fs:g} Hz ({time.perf_counter() - t0:.1f} s)")
 
-    log("\n[1/3] filters: samples per second")
+    log("\n[1/4] filters: samples per second")
     t0 = time.perf_counter()
     fres = bench_filters(rec, sz)
     kf = fres["kf"]["samples_per_s"]
@@ -420,12 +564,17 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
 
     x = run_kf(rec, KFConfig.authors()).euler[:, 0]  # KF roll: DANAE's input
     y = rec.euler[:, 0]                               # true roll: its target
-    log(f"\n[2/3] DANAE training (paper network, window 20, KF roll of the recording): devices {devices}")
+    log(f"\n[2/4] DANAE training (paper network, window 20, KF roll of the recording): devices {devices}")
     t0 = time.perf_counter()
     tres, result = bench_training(x, y, devices, sz)
     log(f"  [{time.perf_counter() - t0:.1f} s]")
 
-    log("\n[3/3] DANAE inference")
+    log(f"\n[3/4] training throughput against the physical limit ({device})")
+    t0 = time.perf_counter()
+    thres = bench_throughput(x, y, device, sz)
+    log(f"  [{time.perf_counter() - t0:.1f} s]")
+
+    log("\n[4/4] DANAE inference")
     t0 = time.perf_counter()
     ires = bench_inference(result, x, y, sz)
     log(f"  [{time.perf_counter() - t0:.1f} s]")
@@ -439,6 +588,7 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         "machine": mach,
         "filters": fres,
         "training": tres,
+        "throughput": thres,
         "inference": ires,
     }
     report.update(summary(report))

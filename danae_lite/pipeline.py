@@ -89,8 +89,11 @@ def train_cached(
     """:func:`danae_lite.train.train` with an on-disk cache.
 
     The file is ``<cache>/<tag>-seed<seed>-<hash>.pt``, the hash covering the inputs, targets,
-    target masks, training settings and the source of the model/training code (not the
-    device or thread count). ``cache`` defaults to ``DANAE_CACHE`` (none when unset).
+    target masks, training settings and the source of the code that builds, windows, seeds
+    and trains the network (:mod:`~danae_lite.model`, :mod:`~danae_lite.train`,
+    :mod:`~danae_lite.windows`, :mod:`~danae_lite.config`), not the device or thread count.
+    A file with the same hash under another tag is the same network and is loaded.
+    ``cache`` defaults to ``DANAE_CACHE`` (none when unset).
     """
     config = config or TrainConfig()
     inputs = [np.ascontiguousarray(a) for a in inputs]
@@ -99,8 +102,10 @@ def train_cached(
     folder = resolve_cache_dir(cache)
     key = _cache_key([*inputs, *(masks or [])], targets, config)
     path = folder / f"{tag}-seed{config.seed}-{key}.pt" if folder else None
-    if path is not None and path.is_file():
-        return load_result(path)
+    if folder is not None:
+        # the key alone identifies the network: one trained under another tag is the same one
+        for found in sorted(folder.glob(f"*-seed{config.seed}-{key}.pt")):
+            return load_result(found)
     res = train(inputs, targets, config, progress=progress, target_masks=masks)
     if path is not None:
         save(res, path, metadata=metadata or {"tag": tag})
@@ -108,11 +113,13 @@ def train_cached(
 
 
 def _cache_key(inputs: list[NDArray[np.float64]], targets: list[NDArray[np.float64]], config: TrainConfig) -> str:
-    """Hash of everything that determines a trained network (not the device or thread count)."""
-    from . import model as model_module, train as train_module
+    """Hash of everything that determines a trained network (not the device or thread count):
+    the data, the settings, and the source of the code that builds, windows, seeds and trains it."""
+    from . import config as config_module, model as model_module, train as train_module
+    from . import windows as windows_module
 
     h = hashlib.sha256()
-    for module in (model_module, train_module):
+    for module in (model_module, train_module, windows_module, config_module):
         h.update(Path(module.__file__).read_bytes())
     settings = {k: v for k, v in config.to_dict().items() if k not in ("device", "num_threads")}
     h.update(repr(sorted(settings.items())).encode())

@@ -169,3 +169,17 @@ def one_torch_thread():
     torch.set_num_threads(1)
     yield
     torch.set_num_threads(old)
+
+
+def assert_close_scaled(actual, desired, rtol: float) -> None:
+    """``assert_allclose`` whose absolute tolerance scales with the array it checks.
+
+    Two correct computations of a matrix (another summation order, another thread count,
+    another algorithm) agree on its large entries to ``rtol`` but leave rounding noise of
+    order ``rtol * max|desired|`` in the entries that should be zero; a fixed ``atol`` such as
+    1e-12 then fails on the size of the matrix, not on an error. The absolute tolerance here
+    is ``rtol * max|desired|``.
+    """
+    desired = np.asarray(desired, dtype=float)
+    scale = float(np.abs(desired).max()) if desired.size else 0.0
+    np.testing.assert_allclose(actual, desired, rtol=rtol, atol=rtol * scale)

@@ -30,6 +30,8 @@ from danae_lite.kalman import (
 )
 from danae_lite.recording import Recording
 
+from conftest import assert_close_scaled
+
 B_FIELD, INCL = 48.0, math.radians(60.0)
 M_REF = B_FIELD * np.array([math.cos(INCL), 0.0, -math.sin(INCL)])  # x north, y west, z up
 
@@ -119,10 +121,10 @@ def test_first_two_steps_by_hand():
     xp0 = [0.1 * 0.2, 0.1 * -0.1, 0.1 * 0.3]
     ang0 = [xp0[j] + k0 * (y0[j] - xp0[j]) for j in range(3)]
     bias0 = [k1 * (y0[j] - xp0[j]) for j in range(3)]
-    np.testing.assert_allclose(res.measurements[0], y0, rtol=0, atol=1e-15)
-    np.testing.assert_allclose(res.rates[0], [0.2, -0.1, 0.3], rtol=0, atol=1e-15)
-    np.testing.assert_allclose(res.euler[0], ang0, rtol=0, atol=1e-15)
-    np.testing.assert_allclose(res.bias[0], bias0, rtol=0, atol=1e-15)
+    assert_close_scaled(res.measurements[0], y0, rtol=1e-15)
+    assert_close_scaled(res.rates[0], [0.2, -0.1, 0.3], rtol=1e-15)
+    assert_close_scaled(res.euler[0], ang0, rtol=1e-15)
+    assert_close_scaled(res.bias[0], bias0, rtol=1e-15)
     np.testing.assert_allclose(res.gains[0][[0, 1], 0], [k0, k1], rtol=1e-15)
     # P = (I - K C) P' = [[2.01/3.01, -0.1/3.01], [-0.1/3.01, 2 - 0.01/3.01 = 6.01/3.01]]
 
@@ -142,10 +144,10 @@ def test_first_two_steps_by_hand():
     xp1 = [ang0[j] - 0.1 * bias0[j] + 0.1 * u1[j] for j in range(3)]
     ang1 = [xp1[j] + k0 * (y1[j] - xp1[j]) for j in range(3)]
     bias1 = [bias0[j] + k1 * (y1[j] - xp1[j]) for j in range(3)]
-    np.testing.assert_allclose(res.rates[1], u1, rtol=0, atol=1e-15)
-    np.testing.assert_allclose(res.measurements[1], y1, rtol=0, atol=1e-15)
-    np.testing.assert_allclose(res.euler[1], ang1, rtol=0, atol=1e-14)
-    np.testing.assert_allclose(res.bias[1], bias1, rtol=0, atol=1e-14)
+    assert_close_scaled(res.rates[1], u1, rtol=1e-15)
+    assert_close_scaled(res.measurements[1], y1, rtol=1e-15)
+    assert_close_scaled(res.euler[1], ang1, rtol=1e-14)
+    assert_close_scaled(res.bias[1], bias1, rtol=1e-14)
     np.testing.assert_allclose(res.gains[1][[0, 1], 0], [k0, k1], rtol=1e-14)
     # P after step 1: [[(1-k0) p00', (1-k0) p01'], [., p11' - k1 p01']] with p11' = 9.02/3.01
     p00, p01, p11 = 5.1001 / 3.01, -0.701 / 3.01, 9.02 / 3.01
@@ -178,7 +180,7 @@ def test_authors_typo_is_documented_but_not_used():
     res = kalman_filter(gyro, acc, mag, 0.1, init_euler=(0, 0))
     ok = naive_kf(gyro, acc, mag, 0.1, np.eye(6), np.eye(6), np.eye(3), np.zeros(6), (0, 0))[0]
     typo = naive_kf(gyro, acc, mag, 0.1, np.eye(6), np.eye(6), np.eye(3), np.zeros(6), (0, 0), True)[0]
-    np.testing.assert_allclose(res.state, ok, atol=1e-12)
+    assert_close_scaled(res.state, ok, rtol=1e-12)
     assert np.abs(res.state[:, 5] - typo[:, 5]).max() > 0.1
 
 
@@ -194,17 +196,17 @@ def test_steady_state_matches_dare_dlqe_and_recursion(dt, cov):
 
     # scipy: the estimation DARE is the control DARE of (A^T, C^T)
     X = scipy.linalg.solve_discrete_are(A.T, C.T, Q, R)
-    np.testing.assert_allclose(ss.P_prior, X, rtol=1e-10, atol=1e-14)
+    assert_close_scaled(ss.P_prior, X, rtol=1e-10)
     # the DARE itself: P' = A P' A^T - A P' C^T (C P' C^T + R)^-1 C P' A^T + Q
     res = A @ X @ A.T - A @ X @ C.T @ np.linalg.solve(C @ X @ C.T + R, C @ X @ A.T) + Q - X
     assert np.abs(res).max() < 1e-9 * np.abs(X).max()
 
     # python-control: dlqe(A, G=I, C, QN, RN) returns the PREDICTOR gain L = A P' C^T S^-1 and P'
     L, P, _ = control.dlqe(A, np.eye(6), C, Q, R)
-    np.testing.assert_allclose(P, ss.P_prior, rtol=1e-8, atol=1e-12)
-    np.testing.assert_allclose(L, ss.K_predictor, rtol=1e-8, atol=1e-12)
-    np.testing.assert_allclose(np.linalg.solve(A, L), ss.K_filter, rtol=1e-8, atol=1e-12)
-    np.testing.assert_allclose(A @ ss.K_filter, L, rtol=1e-8, atol=1e-12)
+    assert_close_scaled(P, ss.P_prior, rtol=1e-8)
+    assert_close_scaled(L, ss.K_predictor, rtol=1e-8)
+    assert_close_scaled(np.linalg.solve(A, L), ss.K_filter, rtol=1e-8)
+    assert_close_scaled(A @ ss.K_filter, L, rtol=1e-8)
     # ... and it is not the filter gain: the angle rows differ by -dt * bias-row gain
     np.testing.assert_allclose(L[0, 0] - ss.K_filter[0, 0], -dt * ss.K_filter[1, 0], rtol=1e-8)
     assert np.abs(L - ss.K_filter).max() > 1e-4
@@ -213,15 +215,15 @@ def test_steady_state_matches_dare_dlqe_and_recursion(dt, cov):
     cfg = KFConfig(**params)
     seq = gain_sequence(dt, cfg)
     assert seq.converged
-    np.testing.assert_allclose(seq.K[-1], ss.K_filter, rtol=1e-8, atol=1e-12)
-    np.testing.assert_allclose(seq.P_post[-1], ss.P_post, rtol=1e-8, atol=1e-12)
+    assert_close_scaled(seq.K[-1], ss.K_filter, rtol=1e-8)
+    assert_close_scaled(seq.P_post[-1], ss.P_post, rtol=1e-8)
     if cfg.block_diagonal:
         general = gain_sequence(dt, cfg, method="general")
         # (the step at which "converged" is detected depends on ulp-level noise)
         assert general.converged
         m = min(len(general), len(seq))
-        np.testing.assert_allclose(general.K[:m], seq.K[:m], rtol=1e-12, atol=1e-15)
-        np.testing.assert_allclose(general.P_post[:m], seq.P_post[:m], rtol=1e-12, atol=1e-15)
+        assert_close_scaled(general.K[:m], seq.K[:m], rtol=1e-12)
+        assert_close_scaled(general.P_post[:m], seq.P_post[:m], rtol=1e-12)
 
 
 def test_untuned_steady_gain_numbers():
@@ -376,13 +378,13 @@ def test_block_general_and_naive_agree(params, dt):
     assert fast.path == "block" and gen.path == "general"
     xs, ys, us, Ks, P = naive_kf(gyro, acc, mag, dt, cfg.P0, cfg.Q, cfg.R, x0, init)
     for res in (fast, gen):
-        np.testing.assert_allclose(res.state, xs, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(res.measurements, ys, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(res.rates, us, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(res.gains, Ks, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(res.P, P, rtol=0, atol=1e-12)
-        np.testing.assert_allclose(res.gain, Ks[-1], rtol=0, atol=1e-12)
-    np.testing.assert_allclose(fast.state, gen.state, rtol=0, atol=1e-12)
+        assert_close_scaled(res.state, xs, rtol=1e-12)
+        assert_close_scaled(res.measurements, ys, rtol=1e-12)
+        assert_close_scaled(res.rates, us, rtol=1e-12)
+        assert_close_scaled(res.gains, Ks, rtol=1e-12)
+        assert_close_scaled(res.P, P, rtol=1e-12)
+        assert_close_scaled(res.gain, Ks[-1], rtol=1e-12)
+    assert_close_scaled(fast.state, gen.state, rtol=1e-12)
 
 
 def test_general_path_with_coupled_covariances_matches_naive():
@@ -392,9 +394,9 @@ def test_general_path_with_coupled_covariances_matches_naive():
     res = kalman_filter(gyro, acc, mag, 0.05, cfg, init_euler=(0.0, 0.1))
     assert res.path == "general"
     xs, ys, us, Ks, P = naive_kf(gyro, acc, mag, 0.05, cfg.P0, cfg.Q, cfg.R, np.zeros(6), (0.0, 0.1))
-    np.testing.assert_allclose(res.state, xs, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(res.measurements, ys, rtol=0, atol=1e-12)
-    np.testing.assert_allclose(res.P, P, rtol=0, atol=1e-12)
+    assert_close_scaled(res.state, xs, rtol=1e-12)
+    assert_close_scaled(res.measurements, ys, rtol=1e-12)
+    assert_close_scaled(res.P, P, rtol=1e-12)
     with pytest.raises(ValueError, match="block-diagonal"):
         kalman_filter(gyro, acc, mag, 0.05, cfg, method="block")
 
@@ -405,9 +407,9 @@ def test_short_recording_without_convergence_matches_naive():
     res = kalman_filter(gyro, acc, mag, 0.01, cfg, init_euler=(0, 0), store_gains=True)
     xs, _, _, Ks, P = naive_kf(gyro, acc, mag, 0.01, cfg.P0, cfg.Q, cfg.R, np.zeros(6), (0, 0))
     assert res.n_transient == 5
-    np.testing.assert_allclose(res.state, xs, atol=1e-12)
-    np.testing.assert_allclose(res.gains, Ks, atol=1e-12)
-    np.testing.assert_allclose(res.P, P, atol=1e-12)
+    assert_close_scaled(res.state, xs, rtol=1e-12)
+    assert_close_scaled(res.gains, Ks, rtol=1e-12)
+    assert_close_scaled(res.P, P, rtol=1e-12)
 
 
 def test_simulated_recording_block_equals_naive():
@@ -416,7 +418,7 @@ def test_simulated_recording_block_equals_naive():
     cfg = KFConfig.authors()
     res = run_kf(rec, cfg)
     xs = naive_kf(rec.gyro, rec.acc, rec.mag, 0.1, np.eye(6), np.eye(6), np.eye(3), np.zeros(6), rec.euler[0, :2])[0]
-    np.testing.assert_allclose(res.state, xs, rtol=0, atol=1e-12)
+    assert_close_scaled(res.state, xs, rtol=1e-12)
 
 
 # ------------------------------------------------------------------ validation

@@ -82,6 +82,31 @@ def test_determinism_same_seed_bit_identical():
         assert torch.equal(v, b.model.state_dict()[k])
     assert not np.allclose(pa, pc)
 
+def test_thread_count_changes_a_seed_only_by_rounding():
+    # the same seed on 1 and 2 threads: the same training up to float32 summation order
+    xs, ys = dataset((400, 300))
+    one = train(xs, ys, small(seed=3, num_threads=1, hidden=128), progress=False)
+    two = train(xs, ys, small(seed=3, num_threads=2, hidden=128), progress=False)
+    x, _ = recording(200, 0.1, seed=7)
+    np.testing.assert_allclose(predict(two, x), predict(one, x), rtol=0, atol=1e-4)
+    np.testing.assert_allclose(two.history.val_loss, one.history.val_loss, rtol=1e-3)
+    assert one.best_step == two.best_step
+
+
+def test_default_threads_are_the_process_setting():
+    # None means "what the entry point set" (torch.get_num_threads()), restored afterwards
+    from danae_lite.train import _default_threads
+
+    old = torch.get_num_threads()
+    try:
+        torch.set_num_threads(1)
+        assert _default_threads() == 1
+        xs, ys = dataset((300,))
+        train(xs, ys, small(num_threads=2), progress=False)
+        assert torch.get_num_threads() == 1
+    finally:
+        torch.set_num_threads(old)
+
 def test_early_stopping_triggers():
     xs, ys = dataset((400, 300))
     # an unattainable min_delta: only the first check counts as an improvement
