@@ -1,6 +1,12 @@
-# The DANAE book: two commands do everything.
-#   make book   -> creates .venv if missing, executes every notebook, writes _build/html/index.html
-#   make test   -> unit tests plus every notebook under nbmake (fast mode), same venv
+# The DANAE book.
+#   make book    -> creates .venv if missing, renders the notebooks' committed outputs (executes nothing),
+#                   writes _build/html/index.html
+#   make test    -> unit tests plus every notebook under nbmake (fast mode), same venv; one torch
+#                   thread per pytest worker (OMP_NUM_THREADS=1): $(JOBS) workers share the cores
+#   make execute -> re-executes every chapter in place, in full mode on real data, storing the outputs
+#                   that `make book` renders (python -m danae_lite.book; ARGS="--only 03_danae" for one).
+#                   It needs DANAE_DATA and refuses to run without it (or in fast mode) unless
+#                   ARGS="--out DIR" writes the executed copies elsewhere.
 # Real data: export DANAE_DATA=/path/to/data (holding oxiod/ and/or ucs/); otherwise the simulator stands in.
 
 PYTHON ?= python3
@@ -8,10 +14,11 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 JOBS   ?= 2
+ARGS   ?=
 # trained networks are shared between chapters through this cache (see danae_lite.config)
 export DANAE_CACHE ?= $(CURDIR)/_build/danae_cache
 
-.PHONY: book test unit lab bench clean
+.PHONY: book execute test unit lab bench clean
 
 $(STAMP): requirements.txt pyproject.toml
 	@test -x $(BIN)/python || $(PYTHON) -c 'import sys; sys.exit(0 if sys.version_info >= (3, 11, 5) else "Python >= 3.11.5 is needed (some pinned packages require it); $(PYTHON) is " + sys.version.split()[0] + ": run make PYTHON=/path/to/python3.11")'
@@ -26,11 +33,14 @@ book: $(STAMP)
 	$(BIN)/jupyter-book build . -W -n --keep-going
 	@echo "Book written to _build/html/index.html"
 
+execute: $(STAMP)
+	$(BIN)/python -m danae_lite.book $(ARGS)
+
 test: $(STAMP)
-	DANAE_FAST=$${DANAE_FAST:-1} $(BIN)/python -m pytest -n $(JOBS) tests notebooks --nbmake --nbmake-timeout=1200
+	DANAE_FAST=$${DANAE_FAST:-1} OMP_NUM_THREADS=$${OMP_NUM_THREADS:-1} $(BIN)/python -m pytest -n $(JOBS) tests notebooks --nbmake --nbmake-timeout=1200
 
 unit: $(STAMP)
-	$(BIN)/python -m pytest -n $(JOBS) tests
+	OMP_NUM_THREADS=$${OMP_NUM_THREADS:-1} $(BIN)/python -m pytest -n $(JOBS) tests
 
 lab: $(STAMP)
 	$(BIN)/jupyter lab notebooks

@@ -6,15 +6,32 @@ It fixes the things every chapter relies on, in one place:
 * the real-data directory (``DANAE_DATA``) — or the simulator when it is absent;
 * the seeds of python, numpy and torch;
 * the plotting style of the book (:mod:`danae_lite.plots`);
-* a sensible number of torch CPU threads.
+* torch's CPU threads: torch's own default (every physical core, or ``OMP_NUM_THREADS``).
+
+It also holds the one command that re-executes the chapters, ``python -m danae_lite.book``
+(``make execute``): the book renders the outputs stored in the notebooks and never executes
+them itself. See :func:`execute_book` for its safety rule and :func:`main` for its flags.
 """
 from __future__ import annotations
 
+import hashlib
 import os
+import platform
+import re
+import shutil
+import sys
+import time
+from collections.abc import Mapping, MutableMapping, Sequence
 from dataclasses import dataclass
+from datetime import datetime, timezone
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
-from .config import DEFAULT_SEED, data_dir, default_device, fast_mode, seed_everything
+from .config import (_FALSE, _TRUE, CACHE_ENV, DATA_ENV, DEFAULT_SEED, FAST_ENV, data_dir, default_device,
+                     fast_mode, seed_everything)
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 
 @dataclass(frozen=True)
@@ -43,10 +60,422 @@ def setup(seed: int = DEFAULT_SEED, *, verbose: bool = True) -> BookConfig:
     seed_everything(seed)
     import torch
 
-    torch.set_num_threads(max(1, min(4, os.cpu_count() or 1)))
+    # torch's own thread count stands: every physical core, or OMP_NUM_THREADS when set (make
+    # test sets 1 per pytest worker so that two workers never oversubscribe two cores)
     cfg = BookConfig(fast=fast_mode(), data_dir=data_dir(), seed=seed, device=default_device())
     if verbose:
         mode = "FAST (DANAE_FAST=1: reduced epochs and data)" if cfg.fast else "full"
         data = f"{cfg.data_dir}" if cfg.data_dir else "not set (DANAE_DATA unset): the simulator stands in"
-        print(f"mode: {mode} | data: {data} | seed: {cfg.seed} | device: {cfg.device}")
+        print(f"mode: {mode} | data: {data} | seed: {cfg.seed} | device: {cfg.device} "
+              f"({torch.get_num_threads()} CPU threads)")
     return cfg
+
+
+# --- re-executing the chapters ---------------------------------------------------------------
+#
+# The book renders the outputs committed with the notebooks (``execute_notebooks: "off"`` in
+# ``_config.yml``); ``python -m danae_lite.book`` (``make execute``) is the one command that
+# produces them. Each executed notebook carries a record of its run in
+# ``metadata["danae"]["execution"]``, so that a test can tell when its code changed afterwards.
+
+CELL_SEPARATOR = "\n# -- cell --\n"
+"""Joins the code cells' sources before hashing, so that moving text across cells changes the hash."""
+
+
+class BookExecutionError(RuntimeError):
+    """A chapter could not be (or must not be) re-executed; the message says which and why."""
+
+
+def _source(cell: Mapping[str, Any]) -> str:
+    """A cell's source as one string (nbformat JSON stores it as a string or a list of lines)."""
+    src = cell.get("source", "")
+    return src if isinstance(src, str) else "".join(src)
+
+
+def code_hash(nb: Mapping[str, Any]) -> str:
+    """SHA-256 of a notebook's code, as a hex string.
+
+    Parameters
+    ----------
+    nb
+        The notebook, as an ``nbformat.NotebookNode`` or as the plain JSON dictionary.
+
+    Returns
+    -------
+    str
+        The hex digest of the sources of the code cells, in order, joined by
+        :data:`CELL_SEPARATOR`. Markdown cells, outputs and metadata do not enter it.
+    """
+    code = [_source(c) for c in nb.get("cells", []) if c.get("cell_type") == "code"]
+    return hashlib.sha256(CELL_SEPARATOR.join(code).encode("utf-8")).hexdigest()
+
+
+def execution_record(nb: Mapping[str, Any]) -> dict[str, Any] | None:
+    """The record of the run that produced a notebook's outputs.
+
+    Parameters
+    ----------
+    nb
+        The notebook, as an ``nbformat.NotebookNode`` or as the plain JSON dictionary.
+
+    Returns
+    -------
+    dict or None
+        ``nb.metadata["danae"]["execution"]`` (see :func:`stamp`), or ``None`` when the
+        notebook was never executed by :func:`execute_notebook`.
+    """
+    record = (nb.get("metadata") or {}).get("danae", {}).get("execution")
+    return dict(record) if isinstance(record, Mapping) else None
+
+
+def stamp(nb: MutableMapping[str, Any], *, seconds: float, data_dir: str | os.PathLike[str] | None,
+          fast: bool, executed: datetime | None = None) -> dict[str, Any]:
+    """Write the record of a run into ``nb.metadata["danae"]["execution"]`` and return it.
+
+    Parameters
+    ----------
+    nb
+        The executed notebook (modified in place).
+    seconds
+        Wall time of the run [s]; stored rounded to 0.1 s.
+    data_dir
+        The real-data directory the run used, or ``None`` for the simulator. Only its last
+        path component is stored, never the absolute path of the machine that ran it.
+    fast
+        Whether the run was in fast mode.
+    executed
+        When the run happened; default now. Stored in UTC, to the second.
+
+    Returns
+    -------
+    dict
+        The record: ``code_sha256`` (:func:`code_hash`), ``danae_lite_version``, ``data``
+        (``"real"`` or ``"simulated"``), ``data_dir``, ``fast``, ``seconds``, ``executed``,
+        ``python`` and ``torch`` versions.
+    """
+    from importlib.metadata import PackageNotFoundError, version
+
+    from . import __version__
+
+    try:
+        torch_version = version("torch")
+    except PackageNotFoundError:
+        torch_version = ""
+    when = (executed or datetime.now(timezone.utc)).astimezone(timezone.utc)
+    record: dict[str, Any] = {
+        "code_sha256": code_hash(nb),
+        "danae_lite_version": __version__,
+        "data": "real" if data_dir else "simulated",
+        "data_dir": Path(data_dir).name if data_dir else "",
+        "fast": bool(fast),
+        "seconds": round(float(seconds), 1),
+        "executed": when.isoformat(timespec="seconds"),
+        "python": platform.python_version(),
+        "torch": torch_version,
+    }
+    metadata = nb.setdefault("metadata", {})
+    metadata.setdefault("danae", {})["execution"] = record
+    return record
+
+
+def _env_fast(env: Mapping[str, str]) -> bool:
+    """Fast mode as the kernel will see it in ``env`` (the rules of :func:`~danae_lite.config.fast_mode`)."""
+    raw = env.get(FAST_ENV, "").strip().lower()
+    if raw in _TRUE:
+        return True
+    if raw in _FALSE:
+        return False
+    raise ValueError(f"{FAST_ENV}={raw!r}: expected one of 1/0, true/false, yes/no, on/off")
+
+
+def _write_atomically(nb: Any, target: Path) -> None:
+    """Write ``nb`` (nbformat v4) to ``target`` through a temporary file in the same folder.
+
+    An interruption leaves either the old file or the new one, never half of one.
+    """
+    import nbformat
+
+    tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
+    try:
+        with open(tmp, "x", encoding="utf-8") as fh:
+            nbformat.write(nb, fh, version=4)
+        if target.exists():
+            shutil.copymode(target, tmp)
+        os.replace(tmp, target)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLike[str],
+                     env: Mapping[str, str], timeout: float | None) -> float:
+    """Execute one notebook in a fresh ``python3`` kernel and write it, with its record, to ``out_path``.
+
+    The kernel runs in the notebook's own folder (as Jupyter Book runs it) with exactly the
+    environment ``env``. Nothing is written unless every cell succeeds, and the write goes
+    through a temporary file, so ``out_path`` (possibly ``path`` itself) is never left half
+    written.
+
+    Parameters
+    ----------
+    path
+        The notebook to execute.
+    out_path
+        Where to write the executed notebook (nbformat v4); may be ``path``.
+    env
+        The whole environment of the kernel. ``DANAE_DATA`` and ``DANAE_FAST`` in it are also
+        what the record (:func:`stamp`) says about the run.
+    timeout
+        Limit for each cell [s]; ``None`` for no limit.
+
+    Returns
+    -------
+    float
+        Wall time of the execution [s], kernel start included.
+
+    Raises
+    ------
+    BookExecutionError
+        When a cell fails or runs past ``timeout``; the message names the notebook and the
+        cell (its index among all cells) and ends with the cell's error.
+    """
+    import nbformat
+    from nbclient import NotebookClient
+    from nbclient.exceptions import CellExecutionError, CellTimeoutError, DeadKernelError
+
+    path = Path(path).resolve()
+    out_path = Path(out_path)
+    kernel_env = dict(env)
+    fast = _env_fast(kernel_env)
+    nb = nbformat.read(path, as_version=4)
+    current: dict[str, int] = {"index": -1}
+
+    def on_cell_start(cell: Any, cell_index: int) -> None:
+        current["index"] = cell_index
+
+    client = NotebookClient(nb, timeout=timeout, kernel_name="python3", allow_errors=False,
+                            resources={"metadata": {"path": str(path.parent)}},
+                            on_cell_start=on_cell_start)
+    start = time.perf_counter()
+    try:
+        client.execute(cwd=str(path.parent), env=kernel_env)
+    except (CellExecutionError, CellTimeoutError, DeadKernelError) as exc:
+        where = f"cell {current['index']}" if current["index"] >= 0 else "the kernel start"
+        if isinstance(exc, CellExecutionError):
+            detail = f"{exc.ename}: {exc.evalue}"
+        else:
+            lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+            detail = lines[-1] if lines else type(exc).__name__
+        raise BookExecutionError(f"{path.name}: {where} failed: {detail}") from exc
+    seconds = time.perf_counter() - start
+    stamp(nb, seconds=seconds, data_dir=kernel_env.get(DATA_ENV) or None, fast=fast)
+    _write_atomically(nb, out_path)
+    return seconds
+
+
+def _refusal(data_dir: Path | None, fast: bool) -> str | None:
+    """Why writing in place is refused for these settings, or ``None`` when it is allowed."""
+    reasons = ([] if data_dir else ["without real data (no --data-dir, DANAE_DATA unset)"]) + (
+        ["in fast mode"] if fast else [])
+    if not reasons:
+        return None
+    replaced = " and ".join((["simulator"] if not data_dir else []) + (["fast-mode"] if fast else []))
+    return (f"refusing to re-execute the chapters in place {' and '.join(reasons)}: the committed notebooks "
+            f"hold a full-mode run on real data, and {replaced} outputs would replace them; "
+            "pass --out DIR to write executed copies elsewhere, or --data-dir DIR (and no --fast) "
+            "to re-execute them in place")
+
+
+def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str | os.PathLike[str] | None,
+                 cache_dir: str | os.PathLike[str] | None, fast: bool,
+                 out_dir: str | os.PathLike[str] | None = None, timeout: float | None = 3600,
+                 progress: bool = True) -> pd.DataFrame:
+    """Execute chapters one after the other and write them with their outputs.
+
+    The committed notebooks hold a full-mode run on real data. They are therefore rewritten
+    in place (``out_dir=None``) only when ``data_dir`` is set and ``fast`` is False; any other
+    run must name an ``out_dir``, where executed copies are written under the same file names.
+
+    Parameters
+    ----------
+    notebooks
+        The notebooks, in the order to run them (the order of ``_toc.yml``: a later chapter
+        reuses the networks an earlier one cached).
+    data_dir
+        Real-data directory, given to the kernel as ``DANAE_DATA``; ``None`` removes
+        ``DANAE_DATA`` from its environment, and the simulator stands in.
+    cache_dir
+        Network cache, given as ``DANAE_CACHE``; ``None`` removes it (no cache).
+    fast
+        Fast mode, given as ``DANAE_FAST`` (``"1"``/``"0"``).
+    out_dir
+        Folder for executed copies; ``None`` writes each notebook in place.
+    timeout
+        Limit for each cell [s]; ``None`` for no limit.
+    progress
+        Show a progress bar and print each chapter's time as it finishes.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per notebook: ``notebook`` (file name), ``seconds``, ``data`` (``"real"`` or
+        ``"simulated"``), ``fast`` and ``written`` (the path written).
+
+    Raises
+    ------
+    BookExecutionError
+        Before anything runs, when an in-place run lacks real data or is in fast mode, or a
+        notebook is missing; during the run, when a cell fails (the chapters before it are
+        written, the failing one and those after it are left as they were).
+    """
+    import pandas as pd
+    from tqdm.auto import tqdm
+
+    paths = [Path(p).resolve() for p in notebooks]
+    missing = [str(p) for p in paths if not p.is_file()]
+    if missing:
+        raise BookExecutionError(f"no such notebook: {', '.join(missing)}")
+    data = Path(data_dir).expanduser().resolve() if data_dir else None
+    out = Path(out_dir).expanduser().resolve() if out_dir is not None else None
+    in_place = out is None or any(p.parent == out for p in paths)  # "copies" into their own folder
+    if in_place and (why := _refusal(data, fast)):
+        raise BookExecutionError(why)
+
+    env = dict(os.environ)
+    env.pop(DATA_ENV, None)
+    env.pop(CACHE_ENV, None)
+    if data is not None:
+        env[DATA_ENV] = str(data)
+    if cache_dir is not None:
+        cache = Path(cache_dir).expanduser().resolve()
+        cache.mkdir(parents=True, exist_ok=True)
+        env[CACHE_ENV] = str(cache)
+    env.update({FAST_ENV: "1" if fast else "0", "MPLBACKEND": "Agg", "PYTHONHASHSEED": "0"})
+
+    if out is not None and not in_place:
+        out.mkdir(parents=True, exist_ok=True)
+        if progress:
+            print(f"writing executed copies to {out}; the notebooks in place are left unchanged")
+    rows: list[dict[str, Any]] = []
+    bar = tqdm(paths, desc="chapters", unit="nb", disable=not progress, leave=False)
+    for path in bar:
+        bar.set_postfix_str(path.stem)
+        target = out / path.name if out is not None else path
+        seconds = execute_notebook(path, out_path=target, env=env, timeout=timeout)
+        rows.append({"notebook": path.name, "seconds": round(seconds, 1),
+                     "data": "real" if data else "simulated", "fast": fast, "written": str(target)})
+        if progress:
+            bar.write(f"{path.stem}: {seconds:.1f} s -> {target}")
+    bar.close()
+    table = pd.DataFrame(rows, columns=["notebook", "seconds", "data", "fast", "written"])
+    if progress and rows:
+        print(f"{len(rows)} notebook(s) executed in {table['seconds'].sum():.1f} s")
+    return table
+
+
+def find_root(start: str | os.PathLike[str] | None = None) -> Path:
+    """The repository root: the first folder holding ``_toc.yml``, from ``start`` (default cwd) upward.
+
+    Raises
+    ------
+    BookExecutionError
+        When no such folder exists.
+    """
+    here = Path(start or Path.cwd()).resolve()
+    for folder in (here, *here.parents):
+        if (folder / "_toc.yml").is_file():
+            return folder
+    raise BookExecutionError(f"no _toc.yml in {here} or above it: run this from inside the book's repository")
+
+
+def toc_chapters(root: str | os.PathLike[str]) -> list[str]:
+    """Stems of the chapters listed in ``<root>/_toc.yml`` under ``notebooks/``, in the book's order."""
+    toc = (Path(root) / "_toc.yml").read_text(encoding="utf-8")
+    return re.findall(r"^\s*-?\s*file:\s*[\"']?notebooks/([^\s\"'/]+?)(?:\.ipynb)?[\"']?\s*(?:#.*)?$",
+                      toc, flags=re.MULTILINE)
+
+
+_EPILOG = """\
+safety rule:
+  The committed notebooks hold a full-mode run on real data, and the book renders those
+  outputs as they are. The notebooks are therefore rewritten in place only for a full-mode
+  run with real data (--data-dir DIR or DANAE_DATA, and no --fast). Without real data, or
+  with --fast, the command refuses to start unless --out DIR names a folder for the
+  executed copies. A chapter whose cell fails is left untouched.
+
+examples:
+  DANAE_DATA=/path/to/data python -m danae_lite.book                 # every chapter, in place
+  python -m danae_lite.book --data-dir /path/to/data --only 03_danae  # one chapter, in place
+  python -m danae_lite.book --fast --out _build/fast_notebooks        # simulator, fast, copies
+"""
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command line: ``python -m danae_lite.book`` (``make execute``). Returns the exit status.
+
+    Parameters
+    ----------
+    argv
+        Arguments (default ``sys.argv[1:]``); ``--help`` lists them.
+
+    Returns
+    -------
+    int
+        0 on success; 2 for a refused run, a missing data folder or notebook, an unknown
+        chapter or a failing cell, with one line on stderr.
+    """
+    import argparse
+
+    parser = argparse.ArgumentParser(
+        prog="python -m danae_lite.book", formatter_class=argparse.RawDescriptionHelpFormatter,
+        description="Re-execute the book's chapters, in the order of _toc.yml, and store their outputs\n"
+                    "and a record of the run in the notebooks. The book itself (make book) only renders\n"
+                    "the stored outputs; this is the one command that produces them (make execute).",
+        epilog=_EPILOG)
+    parser.add_argument("--data-dir", metavar="DIR", default=None,
+                        help=f"folder holding the real data (oxiod/, ucs/); default ${DATA_ENV}")
+    parser.add_argument("--cache", metavar="DIR", default=None,
+                        help=f"network cache shared by the chapters; default ${CACHE_ENV} or "
+                             "_build/danae_cache in the repository")
+    parser.add_argument("--fast", action=argparse.BooleanOptionalAction, default=None,
+                        help=f"fast mode (fewer epochs, shorter recordings); default ${FAST_ENV}")
+    parser.add_argument("--out", metavar="DIR", default=None,
+                        help="write executed copies to DIR instead of rewriting the notebooks in place")
+    parser.add_argument("--only", metavar="CHAPTER", action="append", default=None,
+                        help="run only this chapter, e.g. 03_danae (repeatable); default every chapter "
+                             "of _toc.yml")
+    parser.add_argument("--notebooks-dir", metavar="DIR", default=None,
+                        help="folder of the chapters; default notebooks/ in the repository root "
+                             "(the folder holding _toc.yml, from the current directory upward)")
+    parser.add_argument("--timeout", metavar="S", type=float, default=3600.0,
+                        help="limit for each cell in seconds (default 3600)")
+    args = parser.parse_args(argv)
+
+    try:
+        root = find_root()
+        folder = Path(args.notebooks_dir).resolve() if args.notebooks_dir else root / "notebooks"
+        chapters = toc_chapters(root)
+        if not chapters:
+            raise BookExecutionError(f"{root / '_toc.yml'} lists no chapter under notebooks/")
+        if args.only:
+            wanted = {Path(name).name.removesuffix(".ipynb") for name in args.only}
+            unknown = sorted(wanted - set(chapters))
+            if unknown:
+                raise BookExecutionError(f"unknown chapter {', '.join(unknown)} for --only: "
+                                         f"expected one of {', '.join(chapters)}")
+            chapters = [c for c in chapters if c in wanted]
+        data = data_dir(args.data_dir)
+        fast = fast_mode(args.fast)
+        cache = args.cache or os.environ.get(CACHE_ENV, "").strip() or root / "_build" / "danae_cache"
+        execute_book([folder / f"{c}.ipynb" for c in chapters], data_dir=data, cache_dir=cache, fast=fast,
+                     out_dir=args.out, timeout=args.timeout if args.timeout > 0 else None)
+    except (BookExecutionError, FileNotFoundError, ValueError) as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print("interrupted: the chapter that was running is left as it was", file=sys.stderr)
+        return 130
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

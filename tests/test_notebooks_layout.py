@@ -1,10 +1,14 @@
 """House rules for the chapters: numbered, listed in the table of contents, same first cell,
-committed executed and without stored errors. (nbmake executes them; this checks the files.)"""
+committed executed and without stored errors, and their stored outputs produced by the code they
+show. (nbmake executes them; this checks the files.)"""
 import json
 import re
 from pathlib import Path
 
 import pytest
+
+import danae_lite
+from danae_lite.book import code_hash, execution_record, stamp
 
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("[0-9][0-9]_*.ipynb"))
@@ -29,3 +33,62 @@ def test_first_cell_outputs_and_errors(path):
     ), f"{path.name}: must open with its numbered title"
     assert all(c.get("execution_count") for c in code), f"{path.name}: committed without executing every cell"
     assert not any(o.get("output_type") == "error" for c in code for o in c.get("outputs", [])), path.name
+
+
+def stale_reason(nb: dict, stem: str) -> str | None:
+    """Why a chapter's stored outputs cannot be trusted to match its code, or None when they can.
+
+    The book renders the stored outputs without executing anything, so they must come from a
+    full-mode, real-data run of the code as it is now, by this version of danae_lite.
+    """
+    rerun = (f"re-execute it with real data: DANAE_DATA=/path/to/data make execute "
+             f"(or: python -m danae_lite.book --only {stem})")
+    record = execution_record(nb)
+    if record is None:
+        return (f"{stem}: its stored outputs carry no execution record (metadata.danae.execution), so its "
+                f"code cells may have changed after they were produced; {rerun}")
+    problems = []
+    if record.get("code_sha256") != code_hash(nb):
+        problems.append("its code cells changed after its stored outputs were produced")
+    if record.get("danae_lite_version") != danae_lite.__version__:
+        problems.append(f"its outputs come from danae_lite {record.get('danae_lite_version')}, "
+                        f"not {danae_lite.__version__}")
+    if record.get("data") != "real":
+        problems.append(f"its outputs come from {record.get('data')} data, not the real data")
+    if record.get("fast") is not False:
+        problems.append("its outputs come from a fast-mode run")
+    return f"{stem}: {'; '.join(problems)}; {rerun}" if problems else None
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_outputs_match_the_code_they_were_executed_with(path):
+    reason = stale_reason(json.loads(path.read_text()), path.stem)
+    assert reason is None, reason
+
+
+def test_the_staleness_check_accepts_a_fresh_record_only(tmp_path):
+    copy = tmp_path / NOTEBOOKS[0].name
+    copy.write_text(NOTEBOOKS[0].read_text())
+    nb = json.loads(copy.read_text())
+    nb.get("metadata", {}).pop("danae", None)
+    assert "no execution record" in stale_reason(nb, copy.stem)
+
+    stamp(nb, seconds=1.0, data_dir=tmp_path / "data", fast=False)
+    copy.write_text(json.dumps(nb))
+    stamped = json.loads(copy.read_text())
+    assert stale_reason(stamped, copy.stem) is None
+
+    prose = next(c for c in stamped["cells"] if c["cell_type"] == "markdown")
+    prose["source"] = ["An edited paragraph."]
+    assert stale_reason(stamped, copy.stem) is None
+
+    code = [c for c in stamped["cells"] if c["cell_type"] == "code"]
+    code[-1]["source"] = "".join(code[-1]["source"]) + "\nprint('edited')"
+    reason = stale_reason(stamped, copy.stem)
+    assert reason is not None and "code cells changed after its stored outputs were produced" in reason
+    assert f"python -m danae_lite.book --only {copy.stem}" in reason and "make execute" in reason
+
+    for data_dir, fast, words in ((None, False, "simulated data"), (tmp_path, True, "fast-mode")):
+        fresh = json.loads(copy.read_text())
+        stamp(fresh, seconds=1.0, data_dir=data_dir, fast=fast)
+        assert words in stale_reason(fresh, copy.stem)

@@ -1,0 +1,173 @@
+"""The re-execution command of the book (``python -m danae_lite.book``, ``make execute``).
+
+Two tests start a kernel (a few seconds each); the others check what must happen before any
+kernel starts: the safety rule, the code hash, the record and the command line.
+"""
+from __future__ import annotations
+
+import json
+import time
+from datetime import datetime
+from pathlib import Path
+
+import nbformat
+import pytest
+from nbformat.v4 import new_code_cell, new_markdown_cell, new_notebook
+
+import danae_lite
+from danae_lite import book
+from danae_lite.book import BookExecutionError, code_hash, execute_book, execution_record, main, stamp
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+def write_notebook(path: Path, *sources: str) -> Path:
+    """Write a notebook whose cells are ``sources`` (a leading ``#`` line makes a markdown cell)."""
+    cells = [new_markdown_cell(s) if s.startswith("# ") else new_code_cell(s) for s in sources]
+    nb = new_notebook(cells=cells, metadata={"kernelspec": {"name": "python3", "display_name": "Python 3",
+                                                            "language": "python"}})
+    path.parent.mkdir(parents=True, exist_ok=True)
+    nbformat.write(nb, path)
+    return path
+
+
+@pytest.fixture
+def no_kernel(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Fail the test if a notebook is executed."""
+    def refuse(*args: object, **kwargs: object) -> float:
+        raise AssertionError("a notebook was executed")
+
+    monkeypatch.setattr(book, "execute_notebook", refuse)
+
+
+def test_copies_are_executed_with_the_given_environment_and_stamped(tmp_path, monkeypatch, capsys):
+    monkeypatch.setenv("DANAE_DATA", str(tmp_path))  # must not reach the kernel: data_dir=None
+    src = write_notebook(
+        tmp_path / "src" / "tiny.ipynb",
+        "# Tiny",
+        "import os\nprint(os.environ.get('DANAE_FAST'))\nprint(os.environ.get('DANAE_DATA'))\n"
+        "print(os.environ['DANAE_CACHE'], os.environ['MPLBACKEND'], os.environ['PYTHONHASHSEED'])\n"
+        "print(os.getcwd())",
+        "6 * 7",
+    )
+    before = src.read_bytes()
+    out, cache = tmp_path / "out", tmp_path / "cache"
+
+    table = execute_book([src], data_dir=None, cache_dir=cache, fast=True, out_dir=out, timeout=120)
+
+    assert src.read_bytes() == before
+    printed = capsys.readouterr().out
+    assert f"writing executed copies to {out}" in printed and "tiny: " in printed
+    nb = nbformat.read(out / "tiny.ipynb", as_version=4)
+    lines = nb.cells[1].outputs[0]["text"].splitlines()
+    assert lines == ["1", "None", f"{cache.resolve()} Agg 0", str(src.parent.resolve())]
+    assert nb.cells[2].outputs[0]["data"]["text/plain"] == "42"
+    record = execution_record(nb)
+    assert record is not None
+    assert record["code_sha256"] == code_hash(nbformat.read(src, as_version=4)) == code_hash(nb)
+    assert record["danae_lite_version"] == danae_lite.__version__
+    assert (record["data"], record["data_dir"], record["fast"]) == ("simulated", "", True)
+    assert record["seconds"] > 0
+    assert datetime.fromisoformat(record["executed"]).utcoffset().total_seconds() == 0
+    assert record["python"] and record["torch"]
+    assert table.to_dict("records") == [{"notebook": "tiny.ipynb", "seconds": record["seconds"],
+                                         "data": "simulated", "fast": True,
+                                         "written": str(out.resolve() / "tiny.ipynb")}]
+
+
+def test_a_failing_cell_names_the_notebook_and_leaves_it_untouched(tmp_path):
+    src = write_notebook(tmp_path / "nbs" / "broken.ipynb", "# Broken", "x = 1", "raise ValueError('boom')")
+    before = src.read_bytes()
+    data = tmp_path / "data"
+    data.mkdir()
+
+    with pytest.raises(BookExecutionError, match=r"broken\.ipynb: cell 2 failed: ValueError: boom"):
+        execute_book([src], data_dir=data, cache_dir=None, fast=False, timeout=120, progress=False)
+
+    assert src.read_bytes() == before
+    assert sorted(p.name for p in src.parent.iterdir()) == ["broken.ipynb"]  # no temporary file left
+
+
+@pytest.mark.parametrize(("has_data", "fast", "reason"), [
+    (False, False, "without real data"),
+    (True, True, "in fast mode"),
+    (False, True, "without real data .* and in fast mode"),
+])
+def test_in_place_runs_without_real_data_or_in_fast_mode_are_refused(tmp_path, no_kernel, has_data, fast,
+                                                                     reason):
+    src = write_notebook(tmp_path / "nbs" / "chapter.ipynb", "# Chapter", "print(1)")
+    before = src.read_bytes()
+    start = time.perf_counter()
+    for out_dir in (None, src.parent):  # copies into the notebook's own folder are in place too
+        with pytest.raises(BookExecutionError, match=f"{reason}.*--out DIR") as err:
+            execute_book([src], data_dir=tmp_path if has_data else None, cache_dir=tmp_path / "cache",
+                         fast=fast, out_dir=out_dir, progress=False)
+        assert "replace" in str(err.value) and "\n" not in str(err.value)
+    assert time.perf_counter() - start < 2.0
+    assert src.read_bytes() == before
+    assert not (tmp_path / "cache").exists()
+
+
+def test_code_hash_follows_the_code_cells_only():
+    nb = new_notebook(cells=[new_markdown_cell("# Title"), new_code_cell("a = 1\nb = 2"),
+                             new_code_cell("a + b")])
+    ref = code_hash(nb)
+    assert len(ref) == 64 and int(ref, 16) >= 0
+
+    as_json = json.loads(nbformat.writes(nb))  # sources stored as lists of lines
+    assert isinstance(as_json["cells"][1]["source"], list) and code_hash(as_json) == ref
+
+    nb.cells[0].source = "# Another title\n\nMore prose."
+    nb.cells[1].outputs = [nbformat.v4.new_output("stream", text="x")]
+    nb.metadata["danae"] = {"execution": {"code_sha256": "0"}}
+    assert code_hash(nb) == ref
+
+    nb.cells[2].source = "a - b"
+    assert code_hash(nb) != ref
+    moved = new_notebook(cells=[new_code_cell("a = 1"), new_code_cell("b = 2\na + b")])
+    assert code_hash(moved) != ref  # the same text split differently between cells
+
+
+def test_stamp_keeps_only_the_name_of_the_data_folder(tmp_path):
+    nb = new_notebook(cells=[new_code_cell("1")])
+    assert execution_record(nb) is None
+    record = stamp(nb, seconds=12.345, data_dir=tmp_path / "shared" / "data", fast=False)
+    assert execution_record(nb) == record
+    assert (record["data"], record["data_dir"], record["fast"]) == ("real", "data", False)
+    assert record["seconds"] == 12.3
+    assert str(tmp_path) not in json.dumps(nb.metadata)
+
+
+def test_the_toc_lists_every_chapter_in_order():
+    stems = sorted(p.stem for p in (ROOT / "notebooks").glob("[0-9][0-9]_*.ipynb"))
+    assert book.toc_chapters(ROOT) == stems
+
+
+def test_cli_missing_data_dir_is_one_line_and_exit_2(tmp_path, monkeypatch, capsys, no_kernel):
+    monkeypatch.chdir(ROOT / "notebooks")  # the repository root is found upward
+    assert main(["--data-dir", str(tmp_path / "missing"), "--only", "01_kalman_filter"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and err.startswith("error: ") and "missing" in err
+
+
+def test_cli_refuses_in_place_without_data_and_rejects_unknown_chapters(tmp_path, monkeypatch, capsys,
+                                                                        no_kernel):
+    monkeypatch.chdir(ROOT)
+    monkeypatch.delenv("DANAE_DATA", raising=False)
+    monkeypatch.delenv("DANAE_FAST", raising=False)
+    monkeypatch.setenv("DANAE_CACHE", str(tmp_path / "cache"))
+    assert main(["--only", "01_kalman_filter"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "refusing" in err and "--out DIR" in err
+    assert main(["--only", "07_nothing"]) == 2
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "07_nothing" in err and "01_kalman_filter" in err
+    assert not (tmp_path / "cache").exists()
+
+
+def test_cli_help_explains_the_safety_rule(capsys):
+    with pytest.raises(SystemExit) as done:
+        main(["--help"])
+    assert done.value.code == 0
+    text = " ".join(capsys.readouterr().out.split())
+    assert "rewritten in place only for a full-mode run with real data" in text and "--out DIR" in text
