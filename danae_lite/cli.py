@@ -208,7 +208,7 @@ def _add_common(p: argparse.ArgumentParser, command: str) -> None:
     p.add_argument("--device", metavar="DEV", default=None,
                      help="torch device for training, e.g. cpu, cuda, cuda:1. Default: cuda when available, else cpu")
     p.add_argument("--threads", metavar="N", type=_positive_int, default=None,
-                     help="torch CPU threads. Default: half the usable cores, 1 to 4")
+                     help="torch CPU threads. Default: torch's own (every physical core, or OMP_NUM_THREADS)")
     p.add_argument("--out", metavar="DIR", default=None,
                      help="output folder (created if needed; files in it are overwritten). "
                           f"Default: runs/{command}-<experiment>")
