@@ -82,6 +82,10 @@ CELL_SEPARATOR = "\n# -- cell --\n"
 """Joins the code cells' sources before hashing, so that moving text across cells changes the hash."""
 
 
+INLINE_BACKEND = "module://matplotlib_inline.backend_inline"
+"""matplotlib backend of the kernels: figures are stored in the notebook as PNG outputs (an
+inherited ``MPLBACKEND=Agg`` would draw them nowhere and leave the book without figures)."""
+
 class BookExecutionError(RuntimeError):
     """A chapter could not be (or must not be) re-executed; the message says which and why."""
 
@@ -252,7 +256,9 @@ def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLik
     def on_cell_start(cell: Any, cell_index: int) -> None:
         current["index"] = cell_index
 
-    client = NotebookClient(nb, timeout=timeout, kernel_name="python3", allow_errors=False,
+    for cell in nb.cells:  # per-cell timestamps would make every re-execution a diff of every cell
+        cell.metadata.pop("execution", None)
+    client = NotebookClient(nb, timeout=timeout, kernel_name="python3", allow_errors=False, record_timing=False,
                             resources={"metadata": {"path": str(path.parent)}},
                             on_cell_start=on_cell_start)
     start = time.perf_counter()
@@ -349,7 +355,7 @@ def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str |
         cache = Path(cache_dir).expanduser().resolve()
         cache.mkdir(parents=True, exist_ok=True)
         env[CACHE_ENV] = str(cache)
-    env.update({FAST_ENV: "1" if fast else "0", "MPLBACKEND": "Agg", "PYTHONHASHSEED": "0"})
+    env.update({FAST_ENV: "1" if fast else "0", "MPLBACKEND": INLINE_BACKEND, "PYTHONHASHSEED": "0"})
 
     if out is not None and not in_place:
         out.mkdir(parents=True, exist_ok=True)

@@ -42,6 +42,7 @@ def no_kernel(monkeypatch: pytest.MonkeyPatch) -> None:
 
 def test_copies_are_executed_with_the_given_environment_and_stamped(tmp_path, monkeypatch, capsys):
     monkeypatch.setenv("DANAE_DATA", str(tmp_path))  # must not reach the kernel: data_dir=None
+    monkeypatch.setenv("MPLBACKEND", "Agg")  # an inherited Agg must not stop the figures being stored
     src = write_notebook(
         tmp_path / "src" / "tiny.ipynb",
         "# Tiny",
@@ -49,6 +50,7 @@ def test_copies_are_executed_with_the_given_environment_and_stamped(tmp_path, mo
         "print(os.environ['DANAE_CACHE'], os.environ['MPLBACKEND'], os.environ['PYTHONHASHSEED'])\n"
         "print(os.getcwd())",
         "6 * 7",
+        "import matplotlib.pyplot as plt\nplt.plot([0, 1], [1, 0])\nplt.show()",
     )
     before = src.read_bytes()
     out, cache = tmp_path / "out", tmp_path / "cache"
@@ -60,8 +62,10 @@ def test_copies_are_executed_with_the_given_environment_and_stamped(tmp_path, mo
     assert f"writing executed copies to {out}" in printed and "tiny: " in printed
     nb = nbformat.read(out / "tiny.ipynb", as_version=4)
     lines = nb.cells[1].outputs[0]["text"].splitlines()
-    assert lines == ["1", "None", f"{cache.resolve()} Agg 0", str(src.parent.resolve())]
+    assert lines == ["1", "None", f"{cache.resolve()} {book.INLINE_BACKEND} 0", str(src.parent.resolve())]
     assert nb.cells[2].outputs[0]["data"]["text/plain"] == "42"
+    assert any("image/png" in o.get("data", {}) for o in nb.cells[3].outputs), "the figure was not stored"
+    assert not any("execution" in c.metadata for c in nb.cells), "per-cell timestamps were stored"
     record = execution_record(nb)
     assert record is not None
     assert record["code_sha256"] == code_hash(nbformat.read(src, as_version=4)) == code_hash(nb)

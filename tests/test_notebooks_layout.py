@@ -92,3 +92,19 @@ def test_the_staleness_check_accepts_a_fresh_record_only(tmp_path):
         fresh = json.loads(copy.read_text())
         stamp(fresh, seconds=1.0, data_dir=data_dir, fast=fast)
         assert words in stale_reason(fresh, copy.stem)
+
+
+DRAWS = re.compile(r"^\s*(fig\b[\w\s,]*=|ax\s*=.*\.plot\.|plt\.show\(\))", re.M)
+"""A code cell that makes or shows a figure (``fig = ...``, ``fig, ax = ...``, ``ax = df.plot.barh(...)``,
+``plt.show()``)."""
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_every_figure_is_stored_as_an_image(path):
+    # The book renders stored outputs only: a figure cell without a PNG output is a figure missing
+    # from the book (e.g. a kernel run with MPLBACKEND=Agg draws into nothing).
+    nb = json.loads(path.read_text())
+    missing = [i for i, c in enumerate(nb["cells"]) if c["cell_type"] == "code" and DRAWS.search("".join(c["source"]))
+               and not any("image/png" in o.get("data", {}) for o in c.get("outputs", []))]
+    assert any(DRAWS.search("".join(c["source"])) for c in nb["cells"] if c["cell_type"] == "code"), path.name
+    assert not missing, f"{path.name}: cells {missing} draw a figure but store no image; re-execute the chapter"
