@@ -9,7 +9,8 @@
     no cache. ``make book`` and ``make test`` set it to ``_build/danae_cache``.
 ``DANAE_DATA``
     Directory that holds the real datasets in their original layout, as sub-folders
-    ``oxiod/`` (``<setting>/<dataN>/syn/imuK.csv`` + ``viK.csv``) and ``ucs/``
+    ``oxiod/`` (``<setting>/<dataN>/syn/imuK.csv`` + ``viK.csv``), ``broad/``
+    (``data_mat/NN_<name>.mat``) and ``ucs/``
     (``full_dataset/imu_adis.txt``). Unset or missing: the simulator stands in.
 """
 from __future__ import annotations
