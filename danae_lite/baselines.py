@@ -114,10 +114,16 @@ def _continuous(x: Array, truth: Array) -> Array:
 
 
 class Method:
-    """Base class: ``fit(ctx)`` then ``predict(rec) -> list of (N, 3) [rad]`` (one per seed)."""
+    """Base class: ``fit(ctx)`` then ``predict(rec) -> list of (N, 3) [rad]`` (one per seed).
+
+    ``causal`` says whether the output at sample ``t`` depends only on samples up to ``t`` (so
+    the method could run on-line as it is); a method that looks ahead (a zero-phase filter, a
+    centred window, DANAE's window around the sample) is not causal.
+    """
 
     name = "method"
     description = ""
+    causal = False
 
     def __init__(self) -> None:
         self.params: dict[str, Any] = {}
@@ -136,6 +142,7 @@ class Method:
 class PaperKF(Method):
     name = "paper_kf"
     description = "the paper's KF, P0 = Q = I, R = I, dt = 1/fs"
+    causal = True
 
     def __init__(self, config: kalman.KFConfig | None = None) -> None:
         super().__init__()
@@ -197,7 +204,8 @@ def moving_average(x: Array, length: int) -> Array:
 
 
 class _OnPaperKF(Method):
-    """Post-processing of the paper KF's output (continuous angles, truth frame)."""
+    """Post-processing of the paper KF's output (continuous angles, truth frame); every one of
+    them uses samples after ``t`` for its output at ``t``."""
 
     def fit(self, ctx: Context) -> "_OnPaperKF":
         self.ctx = ctx
@@ -318,6 +326,8 @@ class LinearMap(_OnPaperKF):
 
 class LibraryFilter(Method):
     """A filter of :data:`danae_lite.filters.FILTERS`, its grid searched on the training recordings."""
+
+    causal = True  # each runs sample by sample on the past only (see danae_lite.filters)
 
     def __init__(self, name: str) -> None:
         super().__init__()

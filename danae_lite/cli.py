@@ -1,7 +1,9 @@
 """Command line: ``python -m danae_lite reproduce`` runs the paper's experiment end to end;
 ``python -m danae_lite leaderboard`` runs every method of :mod:`danae_lite.baselines` on the
 same split (:func:`danae_lite.leaderboard.run_leaderboard`) and writes ``leaderboard.csv``,
-``leaderboard.json``, ``leaderboard.png`` and the grid searches into ``--out``. Both share the
+``leaderboard.json``, ``leaderboard.png`` and the grid searches into ``--out``; with
+``--experiment broad`` (the BROAD benchmark, leaderboard only) also ``broad_trials.csv``, the
+benchmark's total, heading and inclination RMSE [deg] per method and test trial. Both share the
 data flags below.
 
 The command parses arguments, resolves the data (:mod:`~danae_lite.datasets`,
@@ -49,7 +51,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .config import DATA_ENV, FAST_ENV
-from .datasets import FAST_DURATION, FAST_SAMPLES, OXIOD_TEST, OXIOD_TRAIN, TRAIN_FRACTION
+from .datasets import (BROAD_TEST_GROUP, BROAD_TRAIN_GROUP, FAST_BROAD_SAMPLES, FAST_DURATION, FAST_SAMPLES,
+                       OXIOD_TEST, OXIOD_TRAIN, TRAIN_FRACTION)
 
 if TYPE_CHECKING:
     from .pipeline import Reproduction
@@ -58,10 +61,13 @@ if TYPE_CHECKING:
 __all__ = ["main", "build_parser"]
 
 PROG = "python -m danae_lite"
-EXPERIMENT_ANGLES: dict[str, tuple[str, ...]] = {"oxiod": ("roll", "pitch", "yaw"), "ucs": ("roll", "pitch")}
-"""Angles evaluated per experiment (the paper reports no UCS yaw)."""
-PAPER_EPOCHS: dict[str, int] = {"oxiod": 1, "ucs": 100}
-"""Training epochs stated in the paper."""
+EXPERIMENT_ANGLES: dict[str, tuple[str, ...]] = {"oxiod": ("roll", "pitch", "yaw"), "ucs": ("roll", "pitch"),
+                                                  "broad": ("roll", "pitch", "yaw")}
+"""Angles evaluated per experiment (the paper reports no UCS yaw; it has no BROAD experiment)."""
+PAPER_EPOCHS: dict[str, int] = {"oxiod": 1, "ucs": 100, "broad": 1}
+"""Training epochs stated in the paper (BROAD: the OxIOD setting)."""
+LEADERBOARD_ONLY = ("broad",)
+"""Experiments the paper did not run: ``leaderboard`` only, no ``reproduce``."""
 FAST_EPOCHS = 2
 """Cap on the default epochs in fast mode."""
 FAST_MAX_STEPS = 300
@@ -113,6 +119,8 @@ data selection:
   (--data-dir, else ${DATA_ENV}) in their original layout:
     oxiod: <dir>/oxiod/handheld/data1/syn/imuK.csv + viK.csv; train {", ".join(f"imu{k}" for k in OXIOD_TRAIN)}; test {", ".join(f"imu{k}" for k in OXIOD_TEST)}
     ucs:   <dir>/ucs/full_dataset/imu_adis.txt; first {TRAIN_FRACTION:.0%} train, last {1 - TRAIN_FRACTION:.0%} test
+    broad: <dir>/broad/data_mat/NN_<name>.mat + trials.json (leaderboard only); train the
+           "{BROAD_TRAIN_GROUP}" trials, test the "{BROAD_TEST_GROUP}" ones
   With neither --data-dir nor ${DATA_ENV}, the deterministic simulator stands in (the output
   and metrics.json say "simulated"). A --data-dir without the experiment's folder is an
   error; a ${DATA_ENV} without it lets the simulator stand in, as in the notebooks.
@@ -124,9 +132,11 @@ data selection:
     ucs:   imu_adis.txt files. With --train and --test both given (different files), each
            file is used whole. With a single file (only --train, only --test, or the same
            file for both) that file is split: first {TRAIN_FRACTION:.0%} train, last {1 - TRAIN_FRACTION:.0%} test.
+    broad: NN_<name>.mat trial files or folders holding them (all trials inside). A side
+           left out takes its default trials from the data directory.
 
 fast mode (--fast or {FAST_ENV}=1):
-  OxIOD recordings are cut to their first {FAST_SAMPLES} samples, simulated ones to {FAST_DURATION["handheld"]:g} s (handheld)
+  OxIOD recordings are cut to their first {FAST_SAMPLES} samples, BROAD trials to {FAST_BROAD_SAMPLES}, simulated ones to {FAST_DURATION["handheld"]:g} s (handheld)
   or {FAST_DURATION["underwater"]:g} s (underwater); the default epochs are capped at {FAST_EPOCHS} and each network at
   {FAST_MAX_STEPS} optimiser steps (--max-steps overrides).
 
@@ -184,10 +194,11 @@ def _method_names() -> list[str]:
 def _add_common(p: argparse.ArgumentParser, command: str) -> None:
     """Arguments shared by ``reproduce`` and ``leaderboard``."""
     p.add_argument("--experiment", choices=tuple(EXPERIMENT_ANGLES), default="oxiod",
-                     help="dataset of the experiment: oxiod (roll, pitch, yaw; Table 1, Figure 1) or "
-                          "ucs (roll, pitch; Table 2, Figure 2). Default: oxiod")
+                     help="dataset of the experiment: oxiod (roll, pitch, yaw; Table 1, Figure 1), "
+                          "ucs (roll, pitch; Table 2, Figure 2) or broad (the BROAD benchmark; leaderboard "
+                          "only). Default: oxiod")
     p.add_argument("--data-dir", metavar="DIR", default=None,
-                     help=f"folder holding oxiod/ and/or ucs/ in their original layout. Default: ${DATA_ENV}; "
+                     help=f"folder holding oxiod/, ucs/ and/or broad/ in their original layout. Default: ${DATA_ENV}; "
                           "without either the simulator stands in")
     p.add_argument("--train", metavar="FILE", nargs="+", default=None,
                      help="training recordings (see 'data selection' below). Default: the experiment's "
@@ -315,12 +326,14 @@ def load_data(args: argparse.Namespace, fast: bool) -> Any:
     if args.data_dir is not None and args.train is None and args.test is None:
         folder = base / name
         if not folder.is_dir():
-            expected = (folder / "handheld" / "data1" / "syn" / "imuK.csv" if name == "oxiod"
-                        else folder / datasets.UCS_RELPATH)
+            expected = {"oxiod": folder / "handheld" / "data1" / "syn" / "imuK.csv", "ucs": folder / datasets.UCS_RELPATH,
+                        "broad": folder / "data_mat" / "NN_<name>.mat"}[name]
             raise UsageError(f"--data-dir {base}: no {name}/ folder with recordings (expected {expected}); "
                              "omit --data-dir to let the simulator stand in")
     if args.train is None and args.test is None:
         return datasets.load_experiment(name, base, fast=fast, verbose=False)
+    if name == "broad":
+        return _broad_files(args, base, fast)
 
     if name == "ucs":
         train_p = _ucs_path(args.train, "--train") if args.train else []
@@ -363,6 +376,59 @@ def load_data(args: argparse.Namespace, fast: bool) -> Any:
     if overlap:
         note += f" Warning: {', '.join(map(str, sorted(overlap)))} is used for training and testing."
     return datasets.Experiment("oxiod", "real", train, test, note)
+
+
+def _broad_trial_files(items: Sequence[str], flag: str) -> list[Path]:
+    """Expand ``--train``/``--test`` items for BROAD: a .mat file stays, a folder gives its trials."""
+    from . import broad
+
+    out: list[Path] = []
+    for item in items:
+        p = Path(item).expanduser()
+        if p.is_dir():
+            found = broad.find_trials(p)  # DataError naming the folder when it holds none
+            out.extend(found)
+        elif not p.is_file():
+            raise UsageError(f"{flag} {p}: no such file")
+        elif p.suffix != ".mat":
+            raise UsageError(f"{flag} {p}: not a BROAD trial (expected NN_<name>.mat)")
+        else:
+            out.append(p)
+    return out
+
+
+def _broad_files(args: argparse.Namespace, base: Path | None, fast: bool) -> Any:
+    """BROAD trials named by ``--train``/``--test``; a side left out takes the data directory's default."""
+    from . import broad, datasets
+
+    default = None
+    if args.train is None or args.test is None:
+        root = datasets.broad_root(base) if base is not None else None
+        if root is None:
+            given = "--test" if args.train is None else "--train"
+            missing = "--train" if args.train is None else "--test"
+            where = f"{base}/broad" if base is not None else f"a data directory (--data-dir or ${DATA_ENV})"
+            raise UsageError(f"{given} given without {missing}, and no default trials found in {where}")
+        default = datasets.load_experiment("broad", base, fast=fast, verbose=False)
+
+    def load(items: Sequence[str] | None, flag: str, fallback: list[Any]) -> tuple[list[Path], list[Any]]:
+        if items is None:
+            return [], fallback
+        paths = _broad_trial_files(items, flag)
+        recs = [broad.load_trial(p) for p in paths]
+        if fast:
+            recs = [r.slice(0, FAST_BROAD_SAMPLES, name=r.name) if len(r) > FAST_BROAD_SAMPLES else r for r in recs]
+        return paths, recs
+
+    train_p, train = load(args.train, "--train", default.train if default else [])
+    test_p, test = load(args.test, "--test", default.test if default else [])
+    train, test = _unique_names(train, test)
+    cut = f" (fast mode: first {FAST_BROAD_SAMPLES} samples each)" if fast else ""
+    note = f"BROAD trials: train {', '.join(r.name for r in train)}; test {', '.join(r.name for r in test)}{cut}."
+    overlap = {p.resolve() for p in train_p} & {p.resolve() for p in test_p}
+    if overlap:
+        note += f" Warning: {', '.join(map(str, sorted(overlap)))} is used for training and testing."
+    return datasets.Experiment("broad", "real", train, test, note)
 
 
 # ---------------------------------------------------------------------------------------
@@ -436,6 +502,9 @@ def reproduce(args: argparse.Namespace) -> int:
     """Run the ``reproduce`` subcommand (:func:`danae_lite.pipeline.reproduce`); returns the exit status."""
     from . import pipeline
 
+    if args.experiment in LEADERBOARD_ONLY:
+        raise UsageError(f"--experiment {args.experiment}: the paper has no such experiment to reproduce; "
+                         f"run '{PROG} leaderboard --experiment {args.experiment}'")
     fast, seeds, device, out_dir, exp, config = _prepare(args)
     angles = EXPERIMENT_ANGLES[args.experiment]
 
@@ -476,6 +545,14 @@ def leaderboard(args: argparse.Namespace) -> int:
         for subset in ("all", "clean"):
             print(f"\nRMSE [rad] on {subset} test samples (errors wrapped; DANAE: mean over seeds):")
             print(board.wide("rmse", subset).to_string(na_rep="-"))
+    if exp.name == "broad":
+        trials = board.trial_metrics()
+        means = trials.groupby("method", sort=False)[["causal", "total_rmse_deg", "heading_rmse_deg",
+                                                     "inclination_rmse_deg"]].agg(
+            {"causal": "first", "total_rmse_deg": "mean", "heading_rmse_deg": "mean", "inclination_rmse_deg": "mean"})
+        with pd.option_context("display.float_format", "{:.2f}".format, "display.width", 140):
+            print(f"\nBROAD metric [deg], mean over the {len(exp.test)} test trials (per trial: broad_trials.csv):")
+            print(means.to_string(na_rep="-"))
     print(f"\nalignment: {board.alignment.summary()}")
     print(f"time: {time.perf_counter() - t0:.1f} s; " + ", ".join(f"{k} {v:.1f} s" for k, v in board.seconds.items()))
     print("wrote " + ", ".join(str(p) for p in written.values()))

@@ -7,17 +7,21 @@ The data directory (``DANAE_DATA`` or an explicit argument, see
   imu7, test on imu2. (The paper used OxIOD's slow-walking set, which is not available here;
   handheld/data1 is the closest set at hand.)
 * ``ucs/full_dataset/imu_adis.txt``: first 80 % train, last 20 % test, as the paper.
+* ``broad/data_mat/NN_<name>.mat`` (the BROAD benchmark, :mod:`danae_lite.broad`): train on the
+  trials of the group ``undisturbed``, test on those of ``disturbed`` (magnets, tapping,
+  vibration), so every test trial is a disturbance the methods never saw while fitted.
 
-A missing ``oxiod/`` (or ``ucs/``) folder means "no real data": the simulator stands in
-(:func:`danae_lite.simulate.simulate`), with the same split shape: four ``"handheld"``
-recordings (seeds ``seed + 0..3``, test = the first) or one ``"underwater"`` recording split
-80/20. A folder that exists but lacks the expected files raises DataError: whoever put it
+A missing ``oxiod/`` (or ``broad/``, ``ucs/``) folder means "no real data": the simulator
+stands in (:func:`danae_lite.simulate.simulate`), with the same split shape: four
+``"handheld"`` recordings (seeds ``seed + 0..3``, test = the first; also for ``broad``) or one
+``"underwater"`` recording split 80/20. A folder that exists but lacks the expected files raises DataError: whoever put it
 there meant real data.
 
 Fast mode (:func:`danae_lite.config.fast_mode`) keeps the first :data:`FAST_SAMPLES` samples of
 each real OxIOD recording, keeps the real UCS recording whole (it is only ~20k samples at
 10 Hz), and simulates :data:`FAST_DURATION` seconds per recording instead of the scenario
-default (180 s handheld, 1950 s underwater).
+default (180 s handheld, 1950 s underwater), and keeps the first :data:`FAST_BROAD_SAMPLES`
+samples of each BROAD trial (60 s; every trial moves within them).
 """
 from __future__ import annotations
 
@@ -25,7 +29,7 @@ import os
 from dataclasses import dataclass
 from pathlib import Path
 
-from . import oxiod, ucs
+from . import broad, oxiod, ucs
 from .config import DATA_ENV, data_dir as resolve_data_dir, fast_mode
 from .recording import DataError, Recording
 
@@ -43,7 +47,13 @@ FAST_SAMPLES = 6000
 """Samples kept per real OxIOD recording in fast mode (60 s at 100 Hz)."""
 FAST_DURATION = {"handheld": 60.0, "underwater": 600.0}
 """Simulated duration per recording in fast mode [s]."""
-NAMES = ("oxiod", "ucs")
+FAST_BROAD_SAMPLES = 17143
+"""Samples kept per BROAD trial in fast mode (60 s at 285.7 Hz)."""
+BROAD_TRAIN_GROUP = "undisturbed"
+"""BROAD trials used for fitting (group of ``trials.json``)."""
+BROAD_TEST_GROUP = "disturbed"
+"""BROAD trials used for testing."""
+NAMES = ("oxiod", "ucs", "broad")
 
 
 @dataclass
@@ -73,6 +83,13 @@ def ucs_file(data_dir: str | os.PathLike[str] | None = None) -> Path | None:
     base = resolve_data_dir(data_dir)
     path = base / "ucs" / UCS_RELPATH if base is not None else None
     return path if path is not None and path.is_file() else None
+
+
+def broad_root(data_dir: str | os.PathLike[str] | None = None) -> Path | None:
+    """Return ``<data dir>/broad`` if that folder exists, else None."""
+    base = resolve_data_dir(data_dir)
+    root = base / "broad" if base is not None else None
+    return root if root is not None and root.is_dir() else None
 
 
 def _where(base: Path | None) -> str:
@@ -107,13 +124,28 @@ def _real_ucs(path: Path) -> Experiment:
     return Experiment("ucs", "real", [train], [test], note)
 
 
+def _real_broad(root: Path, fast: bool) -> Experiment:
+    recs = broad.load_trials(root)  # DataError when the folder holds no trials
+    if fast:
+        recs = [r.slice(0, FAST_BROAD_SAMPLES, name=r.name) if len(r) > FAST_BROAD_SAMPLES else r for r in recs]
+    train = [r for r in recs if BROAD_TRAIN_GROUP in r.meta["groups"]]
+    test = [r for r in recs if BROAD_TEST_GROUP in r.meta["groups"]]
+    if not train or not test:
+        raise DataError(f"{root}: found {len(train)} trial(s) of the group {BROAD_TRAIN_GROUP!r} and {len(test)} of "
+                        f"{BROAD_TEST_GROUP!r} (from trials.json); both are needed for the default split")
+    cut = f" (fast mode: first {FAST_BROAD_SAMPLES} samples each)" if fast else ""
+    note = (f"Real BROAD from {root}: train the {len(train)} {BROAD_TRAIN_GROUP} trials, test the {len(test)} "
+            f"{BROAD_TEST_GROUP} trials{cut}. BROAD: Laidig, Caruso, Cereatti, Seel, Data 6(7), 2021 (CC BY 4.0).")
+    return Experiment("broad", "real", train, test, note)
+
+
 def load_experiment(name: str = "oxiod", data_dir: str | os.PathLike[str] | None = None, *,
                     fast: bool | None = None, seed: int = 0, verbose: bool = True) -> Experiment:
-    """Load the train/test recordings of ``"oxiod"`` or ``"ucs"``, real if found, else simulated.
+    """Load the train/test recordings of ``"oxiod"``, ``"ucs"`` or ``"broad"``, real if found, else simulated.
 
     Parameters
     ----------
-    name : ``"oxiod"`` or ``"ucs"``.
+    name : ``"oxiod"``, ``"ucs"`` or ``"broad"``.
     data_dir : data directory; default ``DANAE_DATA`` (see :func:`danae_lite.config.data_dir`).
     fast : fast mode; default from ``DANAE_FAST`` (see the module docstring).
     seed : base seed of the simulated stand-in.
@@ -126,6 +158,9 @@ def load_experiment(name: str = "oxiod", data_dir: str | os.PathLike[str] | None
     if name == "oxiod":
         root = oxiod_root(base) if base is not None else None
         exp = _real_oxiod(root, fast) if root is not None else _simulated_oxiod(base, fast, seed)
+    elif name == "broad":
+        root = broad_root(base) if base is not None else None
+        exp = _real_broad(root, fast) if root is not None else _simulated_broad(base, fast, seed)
     else:
         folder = base / "ucs" if base is not None else None
         path = ucs_file(base) if base is not None else None
@@ -140,14 +175,16 @@ def load_experiment(name: str = "oxiod", data_dir: str | os.PathLike[str] | None
 
 def simulated_experiment(name: str = "oxiod", *, fast: bool | None = None, seed: int = 0,
                          verbose: bool = True) -> Experiment:
-    """The simulator's stand-in for ``"oxiod"`` (handheld scenario) or ``"ucs"`` (underwater),
-    whatever data directory is set: the same recordings :func:`load_experiment` falls back to."""
+    """The simulator's stand-in for ``"oxiod"`` or ``"broad"`` (handheld scenario) or ``"ucs"``
+    (underwater), whatever data directory is set: the same recordings :func:`load_experiment`
+    falls back to."""
     if name not in NAMES:
         raise ValueError(f"unknown experiment {name!r}; valid: {', '.join(NAMES)}")
     fast = fast_mode(fast)
-    exp = _simulated_oxiod(None, fast, seed) if name == "oxiod" else _simulated_ucs(None, fast, seed)
-    exp.note = exp.note.replace("No real OxIOD data found (DANAE_DATA unset): ", "Simulated: ").replace(
-        "No real UCS data found (DANAE_DATA unset): ", "Simulated: ")
+    make = {"oxiod": _simulated_oxiod, "broad": _simulated_broad, "ucs": _simulated_ucs}[name]
+    exp = make(None, fast, seed)
+    for label in ("OxIOD", "BROAD", "UCS"):
+        exp.note = exp.note.replace(f"No real {label} data found (DANAE_DATA unset): ", "Simulated: ")
     if verbose:
         print(exp.note)
     return exp
@@ -161,6 +198,12 @@ def _simulated_oxiod(base: Path | None, fast: bool, seed: int) -> Experiment:
     note = (f"No real OxIOD data found {_where(base)}: the handheld simulator stands in "
             f"(train sim-handheld-1..3, test sim-handheld-0, {recs[0].duration:g} s each).")
     return Experiment("oxiod", "simulated", recs[1:], recs[:1], note)
+
+
+def _simulated_broad(base: Path | None, fast: bool, seed: int) -> Experiment:
+    sim = _simulated_oxiod(base, fast, seed)
+    note = sim.note.replace("No real OxIOD data found", "No real BROAD data found")
+    return Experiment("broad", "simulated", sim.train, sim.test, note)
 
 
 def _simulated_ucs(base: Path | None, fast: bool, seed: int) -> Experiment:

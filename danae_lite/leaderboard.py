@@ -14,6 +14,10 @@
    standard deviation of the RMSE.
 
 :class:`Leaderboard` writes ``leaderboard.csv``, ``leaderboard.json`` and ``leaderboard.png``.
+On the BROAD benchmark (``experiment.name == "broad"``) it also writes ``broad_trials.csv``:
+:meth:`Leaderboard.trial_metrics`, one row per method and test trial with the benchmark's own
+figures (total, heading and inclination RMSE [deg] over the movement phases,
+:func:`danae_lite.broad.benchmark_rmse`).
 """
 from __future__ import annotations
 
@@ -29,9 +33,9 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from . import metrics
+from . import broad, metrics
 from .alignment import FrameAlignment, estimate_alignment
-from .angles import ANGLES
+from .angles import ANGLES, euler_to_quat
 from .baselines import METHODS, Context, Method
 from .datasets import Experiment
 from .groundtruth import clean_mask, glitch_table
@@ -40,9 +44,14 @@ from .train import TrainConfig
 if TYPE_CHECKING:
     import matplotlib.pyplot as plt
 
-CSV_COLUMNS: tuple[str, ...] = ("method", "samples", "angle", "mean_dev", "max_dev", "rmse", "rmse_std", "n")
-"""Columns of ``leaderboard.csv``; ``samples`` is "all" or "clean", metrics in rad, ``n`` the sample count."""
+CSV_COLUMNS: tuple[str, ...] = ("method", "causal", "samples", "angle", "mean_dev", "max_dev", "rmse", "rmse_std", "n")
+"""Columns of ``leaderboard.csv``; ``causal`` whether the method uses only past samples
+(:attr:`danae_lite.baselines.Method.causal`), ``samples`` "all" or "clean", metrics in rad, ``n``
+the sample count."""
 SUBSETS: tuple[str, str] = ("all", "clean")
+TRIAL_COLUMNS: tuple[str, ...] = ("method", "causal", "test", *broad.METRICS,
+                                  *(f"{m}_std" for m in broad.METRICS), "n_samples", "seeds")
+"""Columns of :meth:`Leaderboard.trial_metrics` (``broad_trials.csv``); figures in degrees."""
 
 
 @dataclass
@@ -80,13 +89,52 @@ class Leaderboard:
             w = w.drop(index=[m for m in w.index if m.startswith("danae")])
         return str(w[angle].astype(float).idxmin())
 
+    def trial_metrics(self) -> pd.DataFrame:
+        """The BROAD benchmark's figures per method and test recording (:data:`TRIAL_COLUMNS`).
+
+        Each prediction (roll, pitch, yaw [rad], ground-truth frame) becomes a quaternion
+        (:func:`danae_lite.angles.euler_to_quat`) and is scored by
+        :func:`danae_lite.broad.benchmark_rmse` against the recording's ground truth on the
+        samples where ``meta["movement"]`` and ``meta["gt_valid"]`` hold (every sample when a
+        recording has neither, e.g. a simulated one). Total, heading and inclination RMSE [deg]
+        are the mean over seeds, ``*_std`` their sample standard deviation over seeds (NaN with
+        one seed), as in the main table. A method without a heading (RIANN) gets the true yaw in
+        place of its missing one, so only its inclination is reported; total and heading are NaN.
+        """
+        rows = []
+        for name, per_test in self.predictions.items():
+            for rec in self.experiment.test:
+                n = len(rec)
+                movement = np.asarray(rec.meta.get("movement", np.ones(n, dtype=bool)), dtype=bool)
+                valid = np.asarray(rec.meta.get("gt_valid", np.ones(n, dtype=bool)), dtype=bool)
+                q_true = np.where(valid[:, None], rec.quat, np.nan)
+                per_seed = []
+                for est in per_test[rec.name]:
+                    e = np.array(est, dtype=float)
+                    no_heading = bool(np.isnan(e[:, 2]).all())
+                    if no_heading:
+                        e[:, 2] = rec.euler[:, 2]
+                    r = broad.benchmark_rmse(euler_to_quat(e), q_true, movement)
+                    figures = r.as_dict()
+                    if no_heading:
+                        figures["total_rmse_deg"] = figures["heading_rmse_deg"] = np.nan
+                    per_seed.append(figures)
+                table = pd.DataFrame(per_seed)
+                std = table.std(ddof=1) if len(table) > 1 else table.iloc[0] * np.nan
+                rows.append({"method": name, "causal": bool(getattr(self.methods[name], "causal", False)),
+                             "test": rec.name, **table.mean().to_dict(),
+                             **{f"{m}_std": float(std[m]) for m in broad.METRICS},
+                             "n_samples": r.n_samples, "seeds": len(table)})
+        return pd.DataFrame(rows, columns=list(TRIAL_COLUMNS))
+
     def to_json(self) -> dict[str, Any]:
         """``{"experiment", "data", "train", "test", "seeds", "alignment", "glitches", "methods", "seconds"}``;
-        ``methods[name]`` holds ``description``, ``params`` and ``all``/``clean``:
+        ``methods[name]`` holds ``description``, ``causal``, ``params`` and ``all``/``clean``:
         ``{angle: {mean_dev, max_dev, rmse, rmse_std, n}}`` [rad]."""
         methods: dict[str, Any] = {}
         for name, m in self.methods.items():
-            entry: dict[str, Any] = {"description": m.description, "params": _plain(m.params)}
+            entry: dict[str, Any] = {"description": m.description, "causal": bool(m.causal),
+                                     "params": _plain(m.params)}
             for subset in SUBSETS:
                 rows = self.table[(self.table.method == name) & (self.table.samples == subset)]
                 entry[subset] = {r.angle: {k: (None if pd.isna(getattr(r, k)) else float(getattr(r, k)))
@@ -131,8 +179,9 @@ class Leaderboard:
         return ax.figure
 
     def write(self, out_dir: str | os.PathLike[str]) -> dict[str, Path]:
-        """Write ``leaderboard.csv``, ``leaderboard.json``, ``leaderboard.png`` and
-        ``search_<method>.csv`` (each grid search) into ``out_dir``; return the paths."""
+        """Write ``leaderboard.csv``, ``leaderboard.json``, ``leaderboard.png``,
+        ``search_<method>.csv`` (each grid search) and, for BROAD, ``broad_trials.csv``
+        (:meth:`trial_metrics`) into ``out_dir``; return the paths."""
         import matplotlib.pyplot as plt
 
         out = Path(out_dir)
@@ -143,6 +192,9 @@ class Leaderboard:
         fig = self.plot()
         fig.savefig(paths["png"], dpi=120)
         plt.close(fig)
+        if self.experiment.name == "broad":
+            paths["broad_trials"] = out / "broad_trials.csv"
+            self.trial_metrics().to_csv(paths["broad_trials"], index=False, float_format="%.6g")
         for name, m in self.methods.items():
             if m.search is not None:
                 p = out / f"search_{name}.csv"
@@ -168,7 +220,7 @@ def _plain(obj: Any) -> Any:
     return obj
 
 
-def _rows(name: str, preds: dict[str, list[NDArray[np.float64]]], exp: Experiment,
+def _rows(name: str, causal: bool, preds: dict[str, list[NDArray[np.float64]]], exp: Experiment,
           clean: dict[str, NDArray[np.bool_]]) -> list[dict[str, Any]]:
     truth = np.concatenate([r.euler for r in exp.test])
     ok = np.concatenate([clean[r.name] for r in exp.test])
@@ -183,11 +235,11 @@ def _rows(name: str, preds: dict[str, list[NDArray[np.float64]]], exp: Experimen
                     break
                 per_seed.append(metrics.metric_table(est[sel], truth[sel, k], angles=(a,))[a])
             if not per_seed:
-                rows.append({"method": name, "samples": subset, "angle": a, "mean_dev": np.nan, "max_dev": np.nan,
+                rows.append({"method": name, "causal": causal, "samples": subset, "angle": a, "mean_dev": np.nan, "max_dev": np.nan,
                              "rmse": np.nan, "rmse_std": np.nan, "n": int(sel.sum())})
                 continue
             m = pd.concat(per_seed, axis=1)
-            rows.append({"method": name, "samples": subset, "angle": a,
+            rows.append({"method": name, "causal": causal, "samples": subset, "angle": a,
                          **{metric: float(m.loc[metric].mean()) for metric in metrics.METRICS},
                          "rmse_std": float(m.loc["rmse"].std(ddof=1)) if len(per_seed) > 1 else np.nan,
                          "n": int(sel.sum())})
@@ -248,7 +300,7 @@ def run_leaderboard(
         preds[name] = {r.name: m.predict(r) for r in aligned_test}
         seconds[name] = time.perf_counter() - t0
         fitted[name] = m
-        rows += _rows(name, preds[name], exp, clean)
+        rows += _rows(name, bool(m.causal), preds[name], exp, clean)
     seconds["total"] = time.perf_counter() - t_total
     table = pd.DataFrame(rows, columns=list(CSV_COLUMNS))
     return Leaderboard(experiment=exp, table=table, methods=fitted, predictions=preds, alignment=alignment,

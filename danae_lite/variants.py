@@ -26,7 +26,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import kalman
-from .baselines import Context, Method
+from .baselines import Context, Method, make_method
 from .recording import Recording
 from .train import TrainConfig, predict
 
@@ -89,6 +89,7 @@ class DanaeOn(Method):
         self.source, self.inputs, self.overrides = source, inputs, train_overrides
         causal = "-causal" if train_overrides.get("arch") == "causal" else ""
         self.name = name or f"danae{'-multi' if inputs == 'multi' else ''}{causal}[{source}]"
+        self.causal = bool(causal) and make_method(source).causal  # a causal net on a causal filter
         self.description = (f"DANAE on {source}'s output, {len(self._channels())} input channels, "
                             f"roll/pitch/yaw jointly with yaw as (sin, cos)")
 
