@@ -192,13 +192,18 @@ class FilterSpec:
 
 
 FILTERS: dict[str, FilterSpec] = {
-    "fusion": FilterSpec(fusion, True, {"gain": (0.05, 0.1, 0.2, 0.5, 1.0, 2.0)}),
-    "vqf": FilterSpec(vqf, True, {"tauAcc": (0.5, 1.0, 2.0, 3.0, 5.0, 10.0, 20.0, 40.0)}),
+    "fusion": FilterSpec(fusion, True, {"gain": (0.05, 0.1, 0.2, 0.5, 1.0, 2.0),
+                                        "magnetic_rejection": (10.0, 20.0, 45.0, 90.0)}),
+    "vqf": FilterSpec(vqf, True, {"tauAcc": (0.5, 1.0, 2.0, 3.0, 5.0, 10.0, 20.0, 40.0),
+                                  "tauMag": (3.0, 9.0, 30.0, 100.0)}),
     "madgwick": FilterSpec(madgwick, True, {"gain": (0.005, 0.01, 0.02, 0.041, 0.08, 0.16)}),
-    "mahony": FilterSpec(mahony, True, {"k_P": (0.1, 0.3, 1.0, 3.0, 10.0)}),
+    "mahony": FilterSpec(mahony, True, {"k_P": (0.1, 0.3, 1.0, 3.0, 10.0), "k_I": (0.0, 0.003, 0.03, 0.3)}),
     "riann": FilterSpec(riann, False, {}),
 }
-"""The library filters by leaderboard name."""
+"""The library filters by leaderboard name; each grid (product of its lists) is searched jointly
+on the training recordings (:class:`danae_lite.baselines.LibraryFilter`): Fusion's gain and
+magnetic rejection [deg], VQF's tauAcc and tauMag [s], Madgwick's beta [rad/s], Mahony's k_P
+and k_I."""
 
 
 def run_filter(name: str, gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs: float, **params: Any) -> Array:

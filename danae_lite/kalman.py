@@ -47,7 +47,8 @@ Faithfulness notes (see the authors' ``kalman_gyraccmag.py``)
   uses the correct ``A``. :func:`system_matrices` can return the typo'd matrix
   (``authors_typo=True``) for demonstration only.
 * No angle is ever wrapped: neither the innovation nor the state, exactly as in the
-  authors' code. The yaw estimate is unbounded (it can leave [-pi, pi)); when the heading
+  authors' code (``KFConfig(wrap_yaw_innovation=True)`` wraps the yaw innovation to
+  [-pi, pi), a fix the paper's setting does not use). The yaw estimate is unbounded (it can leave [-pi, pi)); when the heading
   crosses +-pi the measurement jumps by 2 pi, the innovation ``psi_mag - psi'`` with it,
   and the yaw estimate and its bias go through a large transient.
 * The authors' roll formula ``atan2(ay, sqrt(ax^2 + az^2))`` equals the true roll only at
@@ -104,6 +105,8 @@ AUTHORS_DT: float = 0.1
 
 _BLOCKS = ((0, 1), (2, 3), (4, 5))
 """State indices (angle, bias) of the roll, pitch and yaw blocks."""
+PI = math.pi
+TWO_PI = 2.0 * math.pi
 
 _REL_TOL = 4.0 * np.finfo(float).eps
 """Relative change below which the gain/covariance recursion counts as converged."""
@@ -299,6 +302,10 @@ class KFConfig:
         As in the authors' code: the previous-estimate roll/pitch used by the step-0 rate
         and heading formulas are the ground truth at sample 0, while the state itself
         starts at ``x0``. ``False`` uses ``x0``'s roll and pitch instead.
+    wrap_yaw_innovation : bool, default False
+        Wrap the yaw innovation ``psi_mag - psi'`` to [-pi, pi) before the update, so that a
+        heading crossing +-pi (a 2 pi jump of the measurement) is a small innovation, not a
+        2 pi one. The state stays continuous (unwrapped). ``False`` is the paper's filter.
 
     Covariances may be given as a scalar (times identity) or as the diagonal entries.
     """
@@ -309,6 +316,7 @@ class KFConfig:
     dt: float | None = None
     x0: NDArray[np.float64] = field(default_factory=lambda: np.zeros(6))
     init_from_truth: bool = True
+    wrap_yaw_innovation: bool = False
 
     def __post_init__(self) -> None:
         object.__setattr__(self, "P0", _as_cov(self.P0, 6, "P0", definite=False))
@@ -354,7 +362,8 @@ class KFConfig:
 
         return (
             f"KFConfig(P0={short(self.P0)}, Q={short(self.Q)}, R={short(self.R)}, dt={self.dt}, "
-            f"x0={self.x0.tolist()}, init_from_truth={self.init_from_truth})"
+            f"x0={self.x0.tolist()}, init_from_truth={self.init_from_truth}"
+            + (", wrap_yaw_innovation=True)" if self.wrap_yaw_innovation else ")")
         )
 
 
@@ -707,6 +716,7 @@ def _block_loop(
     gains: Iterator[tuple[float, ...]],
     st: list[float],
     dt: float,
+    wrap_yaw: bool = False,
 ) -> tuple[array, ...]:
     """The data loop for the three decoupled 2-state blocks, plain ``math`` scalars.
 
@@ -714,7 +724,7 @@ def _block_loop(
     the roll/pitch used by the first step's rate and heading formulas); ``gains`` yields
     (K00, K10, K21, K31, K42, K52) per step; ``rows`` yields (p, q, r, roll_acc, pitch_acc,
     mx, my, mz) with m of unit norm. Returns arrays of phi, b_phi, theta, b_theta, psi,
-    b_psi, u0, u1, u2, psi_mag.
+    b_psi, u0, u1, u2, psi_mag. ``wrap_yaw`` wraps the yaw innovation to [-pi, pi).
     """
     sin, cos, atan2 = math.sin, math.cos, math.atan2
     f, bf, h, bh, s, bs, pf, ph = st
@@ -743,6 +753,8 @@ def _block_loop(
         bh += kh1 * e
         s = s - dt * bs + dt * u2
         e = ym - s
+        if wrap_yaw:
+            e = (e + PI) % TWO_PI - PI
         s += ks0 * e
         bs += ks1 * e
         pf = f
@@ -765,6 +777,7 @@ def _general_loop(
     gains: Iterator[tuple[float, ...]],
     st: list[float],
     dt: float,
+    wrap_yaw: bool = False,
 ) -> tuple[array, ...]:
     """As :func:`_block_loop` with a full 6x3 gain per step (row-major, 18 numbers)."""
     sin, cos, atan2 = math.sin, math.cos, math.atan2
@@ -788,6 +801,8 @@ def _general_loop(
         e0 = ya - x0
         e1 = yb - x2
         e2 = ym - x4
+        if wrap_yaw:
+            e2 = (e2 + PI) % TWO_PI - PI
         x0, x1, x2, x3, x4, x5 = (
             x0 + (k00 * e0 + k01 * e1 + k02 * e2),
             x1 + (k10 * e0 + k11 * e1 + k12 * e2),
@@ -901,7 +916,7 @@ def kalman_filter(
         picked = seq.K[:m].reshape(m, 18)
         loop = _general_loop
     gains = chain(map(tuple, picked.tolist()), repeat(tuple(picked[-1].tolist())))
-    out = loop(rows, gains, st, dt)
+    out = loop(rows, gains, st, dt, cfg.wrap_yaw_innovation)
 
     res = [np.frombuffer(a, dtype=float) for a in out]
     euler = np.column_stack((res[0], res[2], res[4]))
@@ -950,3 +965,50 @@ def run_kf(
     return kalman_filter(
         rec.gyro, rec.acc, rec.mag, dt, cfg, init_euler=init, store_gains=store_gains, method=method
     )
+
+
+def rts_smooth(result: KFResult) -> NDArray[np.float64]:
+    r"""Rauch-Tung-Striebel smoother over a finished :func:`kalman_filter` run: the non-causal
+    counterpart of the KF, each estimate conditioned on *all* samples, past and future.
+
+    With the filter's a-posteriori states :math:`x_t`, covariances :math:`P_t`, the known
+    inputs :math:`u_t` (``result.rates``) and the model of eqs (3)-(7),
+
+    .. math::
+
+        x'_{t+1} = A x_t + B u_{t+1}, \qquad P'_{t+1} = A P_t A^T + Q, \qquad
+        G_t = P_t A^T P'^{-1}_{t+1},
+
+        x^s_{N-1} = x_{N-1}, \qquad x^s_t = x_t + G_t (x^s_{t+1} - x'_{t+1}).
+
+    The inputs (Euler rates at the filter's previous estimates) and the heading measurement
+    are taken as the filter used them, so the smoother treats them as given, exactly as a
+    linear-Gaussian smoother of the same model would. Yaw stays continuous (unwrapped) like the
+    filter's state.
+
+    Returns
+    -------
+    ndarray (N, 6)
+        Smoothed states ``[phi, b_phi, theta, b_theta, psi, b_psi]`` [rad, rad/s, ...].
+    """
+    cfg, dt = result.config, result.dt
+    x = result.state
+    n = len(x)
+    A, B, _ = system_matrices(dt)
+    seq = gain_sequence(dt, cfg, n_max=n, method=result.path)
+    m = len(seq)
+    # one-step predictions of every state from the previous a-posteriori state
+    x_prior_next = x[:-1] @ A.T + result.rates[1:] @ B.T
+    out = x.copy()
+    G_steady = None
+    for t in range(n - 2, -1, -1):
+        if t < m - 1 or G_steady is None:
+            P = seq.P_post[min(t, m - 1)]
+            G = np.linalg.solve((A @ P @ A.T + cfg.Q).T, (P @ A.T).T).T
+            if t >= m - 1:
+                G_steady = G
+        else:
+            G = G_steady
+        out[t] = x[t] + G @ (out[t + 1] - x_prior_next[t])
+    return out
+

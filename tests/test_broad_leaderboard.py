@@ -76,9 +76,9 @@ def test_movement_phases_and_ground_truth_gaps_limit_the_scored_samples(sim_boar
 
 def test_causal_flags_follow_what_each_method_looks_at():
     causal = {name: make_method(name).causal for name in
-              ("paper_kf", "tuned_kf", "butterworth", "moving_average", "linear_map", "fusion", "vqf", "madgwick",
+              ("constant", "paper_kf", "tuned_kf", "tuned_kf_rts", "butterworth", "moving_average", "linear_map", "fusion", "vqf", "madgwick",
                "mahony", "riann", "danae")}
-    assert causal == {"paper_kf": True, "tuned_kf": True, "butterworth": False, "moving_average": False,
+    assert causal == {"constant": True, "paper_kf": True, "tuned_kf": True, "tuned_kf_rts": False, "butterworth": False, "moving_average": False,
                       "linear_map": False, "fusion": True, "vqf": True, "madgwick": True, "mahony": True,
                       "riann": True, "danae": False}
     assert DanaeOn("vqf", inputs="multi", arch="causal", window=64, loss_start=30).causal

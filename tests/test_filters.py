@@ -102,19 +102,51 @@ def test_kf_baselines_on_a_static_pose(method):
     np.testing.assert_allclose(tail, np.tile(expected, (500, 1)), atol=2e-3)
 
 
-def test_tuned_kf_picks_the_grid_minimum_and_beats_the_paper_kf_on_training_data():
+def _total_error_rmse(est_by_name, recs, ctx):
+    """Total-rotation RMSE [rad] from quaternion dot products (independent of total_objective)."""
+    from danae_lite.angles import euler_to_quat
+
+    angles = []
+    for r in recs:
+        ok = ctx.clean[r.name]
+        dot = np.abs(np.sum(euler_to_quat(est_by_name[r.name][ok]) * r.quat[ok], axis=1))
+        angles.append(2.0 * np.arccos(np.clip(dot, 0.0, 1.0)))
+    a = np.concatenate(angles)
+    return float(np.sqrt(np.mean(a * a)))
+
+
+def test_tuned_kf_searches_jointly_and_beats_the_paper_kf_on_training_data():
     from danae_lite.simulate import simulate
 
     recs = [simulate("handheld", duration=30.0, seed=s) for s in (1, 2)]
     ctx = _ctx(recs)
     tuned = baselines.make_method("tuned_kf").fit(ctx)
-    assert len(tuned.search) == len(baselines.KF_Q_ANGLE) * len(baselines.KF_Q_BIAS)
-    for a in ("roll", "pitch", "yaw"):
-        best = tuned.search.loc[tuned.search[f"rmse_{a}"].idxmin()]
-        assert tuned.params[a] == {"q_angle": best.q_angle, "q_bias": best.q_bias}
+    assert len(tuned.search) == len(baselines.KF_Q_ANGLE) ** 2 * len(baselines.KF_Q_BIAS)
+    best = tuned.search.loc[tuned.search["objective"].idxmin()]
+    assert tuned.params == {"q_tilt": best.q_tilt, "q_bias": best.q_bias, "q_yaw": best.q_yaw}
+    assert tuned.config.wrap_yaw_innovation and np.diag(tuned.config.Q).tolist() == [
+        best.q_tilt, best.q_bias, best.q_tilt, best.q_bias, best.q_yaw, best.q_bias]
     paper = baselines.make_method("paper_kf").fit(ctx)
-    obj = lambda m: baselines.train_objective({r.name: m.predict(r)[0] for r in recs}, ctx, (0, 1, 2))  # noqa: E731
-    assert (obj(tuned) < obj(paper)).all()
+    est = lambda m: {r.name: m.predict(r)[0] for r in recs}  # noqa: E731
+    assert _total_error_rmse(est(tuned), recs, ctx) == pytest.approx(best.objective, rel=1e-9)
+    assert _total_error_rmse(est(tuned), recs, ctx) < _total_error_rmse(est(paper), recs, ctx)
+
+
+def test_constant_is_the_training_mean_and_the_smoother_smooths_the_tuned_kf():
+    from danae_lite import kalman
+    from danae_lite.simulate import simulate
+
+    recs = [simulate("handheld", duration=30.0, seed=s) for s in (1, 2)]
+    ctx = _ctx(recs)
+    const = baselines.make_method("constant").fit(ctx)
+    e = np.concatenate([r.euler for r in recs])
+    np.testing.assert_allclose(const.predict(recs[0])[0][5], [e[:, 0].mean(), e[:, 1].mean(),
+                                                              np.angle(np.exp(1j * e[:, 2]).mean())])
+    rts = ctx.method("tuned_kf_rts")
+    smooth = kalman.rts_smooth(kalman.run_kf(recs[0], ctx.method("tuned_kf").config))
+    got = rts.predict(recs[0])[0]
+    np.testing.assert_allclose(got[:, :2], smooth[:, [0, 2]], atol=1e-12)
+    assert not rts.causal and const.causal and ctx.method("tuned_kf").causal
 
 
 def test_butterworth_is_the_digital_filter_with_the_stated_cutoff():
