@@ -171,11 +171,14 @@ def build_parser() -> argparse.ArgumentParser:
     lb = sub.add_parser(
         "leaderboard",
         help="run every baseline, library filter and DANAE on the same split and write one table",
-        description=("Fit every method (the paper's KF, a tuned KF, Butterworth and moving-average low-pass "
-                     "filters of the KF, a linear window map, Fusion, VQF, Madgwick, Mahony, RIANN and DANAE) on "
-                     "the training recordings, evaluate each on the test recordings (mean dev, max dev, RMSE "
-                     "[rad] per angle, errors wrapped to [-pi, pi), on all and on clean ground-truth samples) and "
-                     "write leaderboard.csv, leaderboard.json, leaderboard.png and each grid search."),
+        description=("Fit every method (a constant at the training mean, the paper's KF, a tuned KF and its "
+                     "RTS smoother, Butterworth and moving-average low-pass filters of the KF, a linear window "
+                     "map, Fusion, VQF, Madgwick, Mahony, RIANN and DANAE) on the training recordings, evaluate "
+                     "each on the test recordings (mean dev, max dev, RMSE [rad] per angle, errors wrapped to "
+                     "[-pi, pi), on all and on clean ground-truth samples; a causal column says which use only "
+                     "past samples) and write leaderboard.csv, leaderboard.json, leaderboard.png and each grid "
+                     "search; for --experiment broad also broad_trials.csv (the benchmark's total, heading and "
+                     "inclination RMSE [deg] per method and test trial)."),
         epilog=REPRODUCE_EPILOG.replace("reproduce --experiment oxiod", "leaderboard --experiment oxiod"),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )

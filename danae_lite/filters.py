@@ -197,7 +197,7 @@ FILTERS: dict[str, FilterSpec] = {
     "vqf": FilterSpec(vqf, True, {"tauAcc": (0.5, 1.0, 2.0, 3.0, 5.0, 10.0, 20.0, 40.0),
                                   "tauMag": (3.0, 9.0, 30.0, 100.0)}),
     "madgwick": FilterSpec(madgwick, True, {"gain": (0.005, 0.01, 0.02, 0.041, 0.08, 0.16)}),
-    "mahony": FilterSpec(mahony, True, {"k_P": (0.1, 0.3, 1.0, 3.0, 10.0), "k_I": (0.0, 0.003, 0.03, 0.3)}),
+    "mahony": FilterSpec(mahony, True, {"k_P": (0.1, 0.3, 1.0, 3.0, 10.0), "k_I": (0.0003, 0.003, 0.03, 0.3)}),
     "riann": FilterSpec(riann, False, {}),
 }
 """The library filters by leaderboard name; each grid (product of its lists) is searched jointly

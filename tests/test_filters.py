@@ -186,3 +186,16 @@ def test_linear_map_recovers_a_known_linear_corruption_exactly():
     mask[0][100:110] = False
     W_masked = baselines.fit_linear_map(est, bad, masks=mask)
     np.testing.assert_allclose(baselines.apply_linear_map(W_masked, est[1]), truth[1], atol=1e-9)
+
+
+@pytest.mark.parametrize("name", ["fusion", "vqf", "madgwick", "mahony"])
+def test_every_value_of_each_joint_grid_runs_and_the_minimum_is_chosen(name):
+    from danae_lite.simulate import simulate
+
+    recs = [simulate("handheld", duration=5.0, seed=1)]
+    m = baselines.make_method(name).fit(_ctx(recs))
+    grid = filters.FILTERS[name].grid
+    assert len(m.search) == int(np.prod([len(v) for v in grid.values()]))
+    assert np.isfinite(m.search.objective).all()
+    best = m.search.loc[m.search.objective.idxmin()]
+    assert m.params == {k: best[k] for k in grid}
