@@ -431,7 +431,7 @@ def _broad_files(args: argparse.Namespace, base: Path | None, fast: bool) -> Any
     overlap = {p.resolve() for p in train_p} & {p.resolve() for p in test_p}
     if overlap:
         note += f" Warning: {', '.join(map(str, sorted(overlap)))} is used for training and testing."
-    return datasets.Experiment("broad", "real", train, test, note)
+    return datasets.Experiment("broad", "real", train, test, note, aligned=True)
 
 
 # ---------------------------------------------------------------------------------------

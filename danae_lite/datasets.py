@@ -60,8 +60,10 @@ NAMES = ("oxiod", "ucs", "broad")
 class Experiment:
     """The recordings of one experiment and where they came from.
 
-    ``name`` is ``"oxiod"`` or ``"ucs"``; ``data`` is ``"real"`` or ``"simulated"``; ``note`` is
-    one sentence for people saying which data is used.
+    ``name`` is ``"oxiod"``, ``"ucs"`` or ``"broad"``; ``data`` is ``"real"`` or ``"simulated"``;
+    ``note`` is one sentence for people saying which data is used. ``aligned`` says that the
+    sensor axes already are the ground truth's body axes and its heading is magnetic north (as
+    the BROAD benchmark provides them), so the leaderboard estimates no frame alignment.
     """
 
     name: str
@@ -69,6 +71,7 @@ class Experiment:
     train: list[Recording]
     test: list[Recording]
     note: str
+    aligned: bool = False
 
 
 def oxiod_root(data_dir: str | os.PathLike[str] | None = None) -> Path | None:
@@ -136,7 +139,7 @@ def _real_broad(root: Path, fast: bool) -> Experiment:
     cut = f" (fast mode: first {FAST_BROAD_SAMPLES} samples each)" if fast else ""
     note = (f"Real BROAD from {root}: train the {len(train)} {BROAD_TRAIN_GROUP} trials, test the {len(test)} "
             f"{BROAD_TEST_GROUP} trials{cut}. BROAD: Laidig, Caruso, Cereatti, Seel, Data 6(7), 2021 (CC BY 4.0).")
-    return Experiment("broad", "real", train, test, note)
+    return Experiment("broad", "real", train, test, note, aligned=True)
 
 
 def load_experiment(name: str = "oxiod", data_dir: str | os.PathLike[str] | None = None, *,

@@ -5,7 +5,8 @@
 1. find the ground-truth glitches of every recording (:func:`danae_lite.groundtruth.clean_mask`);
 2. estimate the sensor -> body rotation and the heading of magnetic north on the training
    recordings only (:func:`danae_lite.alignment.estimate_alignment`) and rotate every
-   recording's sensors into the body frame;
+   recording's sensors into the body frame (none for an experiment whose frames are already
+   aligned, ``exp.aligned``: BROAD);
 3. fit every method of :mod:`danae_lite.baselines` on the training recordings (its grid search
    included) and predict the test recordings;
 4. compute the paper's metrics (mean dev, max dev, RMSE [rad], errors wrapped to [-π, π), yaw
@@ -280,7 +281,8 @@ def run_leaderboard(
     t_total = time.perf_counter()
     recs = [*exp.train, *exp.test]
     clean = {r.name: clean_mask(r) for r in recs}
-    alignment = estimate_alignment(exp.train, [clean[r.name] for r in exp.train])
+    alignment = (FrameAlignment.identity() if exp.aligned
+                 else estimate_alignment(exp.train, [clean[r.name] for r in exp.train]))
     aligned_train = [alignment.apply(r) for r in exp.train]
     aligned_test = [alignment.apply(r) for r in exp.test]
     ctx = Context(train=aligned_train, clean=clean, alignment=alignment, seeds=tuple(int(s) for s in seeds),
