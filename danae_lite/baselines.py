@@ -54,7 +54,7 @@ from __future__ import annotations
 import itertools
 import os
 from collections.abc import Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
@@ -95,19 +95,29 @@ LINEAR_WINDOW = 20
 
 @dataclass
 class Context:
-    """What every method may use to fit: aligned training recordings and their clean masks."""
+    """What every method may use to fit: the aligned training recordings, their clean masks and
+    the run's settings. Nothing of the test recordings is in it."""
 
     train: list[Recording]
     """Training recordings, aligned (:meth:`FrameAlignment.apply`)."""
     clean: dict[str, NDArray[np.bool_]]
-    """Clean ground-truth mask per recording name (test recordings too, for evaluation)."""
+    """Clean ground-truth mask per training recording name."""
     alignment: FrameAlignment
     seeds: tuple[int, ...] = (0,)
     """DANAE training seeds."""
     train_config: TrainConfig = field(default_factory=TrainConfig)
     """DANAE training settings (the seed is replaced per network)."""
     cache: str | os.PathLike[str] | None = None
+    """Trained-network cache folder (None: no cache), from the entry point."""
+    jobs: int = 1
+    """Worker processes for the networks (:func:`danae_lite.networks.train_networks`)."""
     progress: bool = False
+
+    def __post_init__(self) -> None:
+        names = {r.name for r in self.train}
+        extra = sorted(set(self.clean) - names)
+        if extra:
+            raise ValueError(f"the fitting context holds masks of recordings that are not training ones: {extra}")
     fitted: dict[str, "Method"] = field(default_factory=dict)
     """Methods already fitted on ``train`` by name, so that a method another one builds on
     (e.g. a DANAE variant's source filter) is fitted, and grid-searched, only once."""
@@ -439,27 +449,53 @@ class LibraryFilter(Method):
 
 
 class Danae(_OnPaperKF):
+    """The paper's DANAE: one network per angle and seed on the paper KF's output.
+
+    Parameters
+    ----------
+    targets : ``"continuous"`` (default: the truth moved next to the KF's unwrapped angle,
+        ``x + wrap(truth - x)``, so no target jumps by 2π) or ``"raw"`` (the ground-truth angle
+        as recorded, yaw in [-π, π): the paper's and the authors' code).
+    clean_targets : leave the ground truth's glitches out of the loss (default) or train on
+        every sample as the paper did.
+    angles : the angles that get a network; the others are predicted as NaN.
+    """
+
     name = "danae"
     source = "paper_kf"
     description = "the paper's DANAE per angle on the paper KF's output, glitch-free targets"
 
+    def __init__(self, targets: str = "continuous", clean_targets: bool = True,
+                 angles: Sequence[str] = ANGLES) -> None:
+        super().__init__()
+        if targets not in ("continuous", "raw"):
+            raise ValueError(f"targets={targets!r}: choose 'continuous' or 'raw'")
+        unknown = [a for a in angles if a not in ANGLES]
+        if not angles or unknown:
+            raise ValueError(f"angles must be a non-empty subset of {ANGLES}, got {tuple(angles)}")
+        self.targets, self.clean_targets, self.angles = targets, bool(clean_targets), tuple(angles)
+        if targets == "raw" or not clean_targets:
+            self.description = (f"the paper's DANAE per angle on the paper KF's output, {targets} targets, "
+                                f"{'glitch-free' if clean_targets else 'every'} target sample")
+
     def fit(self, ctx: Context) -> "Danae":
-        from .pipeline import train_cached
+        from .networks import train_networks
 
         super().fit(ctx)
-        self.results: dict[tuple[str, int], Any] = {}
-        masks = [ctx.clean[r.name] for r in ctx.train]
-        for k, a in enumerate(ANGLES):
-            xs = [self.kf_train[r.name][:, k] for r in ctx.train]
-            ys = [_continuous(self.kf_train[r.name][:, k], r.euler[:, k]) for r in ctx.train]
-            for seed in ctx.seeds:
-                cfg = replace(ctx.train_config, seed=int(seed))
-                self.results[(a, int(seed))] = train_cached(
-                    xs, ys, cfg, target_masks=masks, tag=f"leaderboard-danae-{a}", progress=ctx.progress,
-                    cache=ctx.cache, metadata={"angle": a, "train": [r.name for r in ctx.train]})
+        xs = {a: [self.kf_train[r.name][:, ANGLES.index(a)] for r in ctx.train] for a in self.angles}
+        if self.targets == "raw":
+            ys = {a: [r.euler[:, ANGLES.index(a)] for r in ctx.train] for a in self.angles}
+        else:
+            ys = {a: [_continuous(self.kf_train[r.name][:, ANGLES.index(a)], r.euler[:, ANGLES.index(a)])
+                      for r in ctx.train] for a in self.angles}
+        masks = [ctx.clean[r.name] for r in ctx.train] if self.clean_targets else None
+        self.results = train_networks(xs, ys, ctx.train_config, ctx.seeds, masks=masks, tag=self.name,
+                                      metadata={"method": self.name, "train": [r.name for r in ctx.train]},
+                                      cache=ctx.cache, jobs=ctx.jobs, progress=ctx.progress)
         cfg = ctx.train_config
         self.params = {"arch": cfg.arch, "window": cfg.window, "lr": cfg.lr, "batch_size": cfg.batch_size,
-                       "epochs": cfg.epochs, "max_steps": cfg.max_steps, "seeds": list(ctx.seeds)}
+                       "epochs": cfg.epochs, "max_steps": cfg.max_steps, "seeds": list(ctx.seeds),
+                       "targets": self.targets, "clean_targets": self.clean_targets}
         self.seconds_training = float(sum(r.seconds for r in self.results.values()))
         return self
 
@@ -467,7 +503,10 @@ class Danae(_OnPaperKF):
         x = self.kf.raw(rec)
         out = []
         for seed in self.ctx.seeds:
-            e = np.column_stack([predict(self.results[(a, int(seed))], x[:, k])[:, 0] for k, a in enumerate(ANGLES)])
+            e = np.full_like(x, np.nan)
+            for a in self.angles:
+                k = ANGLES.index(a)
+                e[:, k] = predict(self.results[(a, int(seed))], x[:, k])[:, 0]
             e[:, 2] = wrap(e[:, 2])
             out.append(e)
         return out

@@ -22,38 +22,24 @@ import shutil
 import sys
 import time
 from collections.abc import Mapping, MutableMapping, Sequence
-from dataclasses import dataclass
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .config import (_FALSE, _TRUE, CACHE_ENV, DATA_ENV, DEFAULT_SEED, FAST_ENV, data_dir, default_device,
+from .config import (_FALSE, _TRUE, CACHE_ENV, DATA_ENV, DEFAULT_SEED, FAST_ENV, RunSettings, data_dir,
                      fast_mode, seed_everything)
 
 if TYPE_CHECKING:
     import pandas as pd
 
 
-@dataclass(frozen=True)
-class BookConfig:
-    """What a chapter needs to know about the run it is part of."""
-
-    fast: bool
-    """Fast mode: shrink epochs and data so the whole book runs in minutes."""
-    data_dir: Path | None
-    """Directory holding ``oxiod/`` and/or ``ucs/``; ``None`` means the simulator stands in."""
-    seed: int
-    """Seed given to python, numpy and torch."""
-    device: str
-    """Torch device used for training (``"cuda"`` when available, else ``"cpu"``)."""
-
-    def pick(self, full: int, fast: int) -> int:
-        """Return ``fast`` in fast mode, else ``full`` (e.g. ``cfg.pick(full=20, fast=2)`` epochs)."""
-        return fast if self.fast else full
+BookConfig = RunSettings
+"""What a chapter knows about its run: the package's one settings object (:class:`~danae_lite.config.RunSettings`)."""
 
 
-def setup(seed: int = DEFAULT_SEED, *, verbose: bool = True) -> BookConfig:
-    """Apply the book's common settings and return them as a :class:`BookConfig`."""
+def setup(seed: int = DEFAULT_SEED, *, verbose: bool = True) -> RunSettings:
+    """Apply the book's common settings and return them (:class:`~danae_lite.config.RunSettings`
+    from ``DANAE_FAST``, ``DANAE_DATA``, ``DANAE_CACHE`` and ``DANAE_JOBS``)."""
     from . import plots
 
     plots.use_style()
@@ -62,12 +48,12 @@ def setup(seed: int = DEFAULT_SEED, *, verbose: bool = True) -> BookConfig:
 
     # torch's own thread count stands: every physical core, or OMP_NUM_THREADS when set (make
     # test sets 1 per pytest worker so that two workers never oversubscribe two cores)
-    cfg = BookConfig(fast=fast_mode(), data_dir=data_dir(), seed=seed, device=default_device())
+    cfg = RunSettings.from_env(seed=seed)
     if verbose:
-        mode = "FAST (DANAE_FAST=1: reduced epochs and data)" if cfg.fast else "full"
+        mode = "FAST (DANAE_FAST=1: reduced steps, data and seeds)" if cfg.fast else "full"
         data = f"{cfg.data_dir}" if cfg.data_dir else "not set (DANAE_DATA unset): the simulator stands in"
         print(f"mode: {mode} | data: {data} | seed: {cfg.seed} | device: {cfg.device} "
-              f"({torch.get_num_threads()} CPU threads)")
+              f"({torch.get_num_threads()} CPU threads, {cfg.jobs} worker process(es))")
     return cfg
 
 

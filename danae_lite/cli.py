@@ -34,7 +34,7 @@ into ``--out`` (:meth:`danae_lite.pipeline.Reproduction.write`, plus ``run.json`
 Metrics are computed on all samples of all test recordings taken together, with errors
 wrapped to [-pi, pi). DANAE numbers use the overlap-average reconstruction (every sample is
 covered) and are means over seeds; ``rmse_std`` is the sample standard deviation of the RMSE
-over seeds (0.0 with one seed).
+over seeds (NaN in the CSV and null in the JSON with one seed).
 
 Exit status: 0 on success, 2 for a usage or data error (a one-line message on stderr),
 130 when interrupted.
@@ -50,11 +50,12 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .config import DATA_ENV, FAST_ENV
+from .config import CACHE_ENV, DATA_ENV, FAST_ENV, FAST_EPOCHS, FAST_MAX_STEPS, JOBS_ENV
 from .datasets import (BROAD_TEST_GROUP, BROAD_TRAIN_GROUP, FAST_BROAD_SAMPLES, FAST_DURATION, FAST_SAMPLES,
                        OXIOD_TEST, OXIOD_TRAIN, TRAIN_FRACTION)
 
 if TYPE_CHECKING:
+    from .config import RunSettings
     from .pipeline import Reproduction
     from .train import TrainConfig
 
@@ -68,10 +69,6 @@ PAPER_EPOCHS: dict[str, int] = {"oxiod": 1, "ucs": 100, "broad": 1}
 """Training epochs stated in the paper (BROAD: the OxIOD setting)."""
 LEADERBOARD_ONLY = ("broad",)
 """Experiments the paper did not run: ``leaderboard`` only, no ``reproduce``."""
-FAST_EPOCHS = 2
-"""Cap on the default epochs in fast mode."""
-FAST_MAX_STEPS = 300
-"""Default cap on optimiser steps per network in fast mode."""
 DEFAULT_SEEDS = (0, 1, 2)
 _IMU_RE = re.compile(r"imu(\d+)\.csv")
 
@@ -143,6 +140,8 @@ fast mode (--fast or {FAST_ENV}=1):
 environment:
   {DATA_ENV}   data directory used when --data-dir is not given
   {FAST_ENV}   1/true/yes/on switches fast mode on (same as --fast)
+  {CACHE_ENV}  trained-network cache folder used when --cache is not given (unset: no cache)
+  {JOBS_ENV}   worker processes used when --jobs is not given (default 1)
 
 example:
   {DATA_ENV}=/data {PROG} reproduce --experiment oxiod --seeds 0 1 2 --out runs/oxiod
@@ -223,6 +222,13 @@ def _add_common(p: argparse.ArgumentParser, command: str) -> None:
                      help="torch device for training, e.g. cpu, cuda, cuda:1. Default: cuda when available, else cpu")
     p.add_argument("--threads", metavar="N", type=_positive_int, default=None,
                      help="torch CPU threads. Default: torch's own (every physical core, or OMP_NUM_THREADS)")
+    p.add_argument("--jobs", metavar="N", type=_positive_int, default=None,
+                     help=f"worker processes for independent trainings (angles x seeds, and folds with --folds), "
+                          f"each with cores/N torch threads; the results do not depend on it. Default: ${JOBS_ENV}, "
+                          "else 1")
+    p.add_argument("--cache", metavar="DIR", default=None,
+                     help=f"keep trained networks in DIR and reuse them when the data, settings and code are the "
+                          f"same. Default: ${CACHE_ENV}; without either nothing is cached")
     p.add_argument("--out", metavar="DIR", default=None,
                      help="output folder (created if needed; files in it are overwritten). "
                           f"Default: runs/{command}-<experiment>")
@@ -458,32 +464,36 @@ def _out_dir(args: argparse.Namespace) -> Path:
     return out_dir
 
 
-def _train_config(args: argparse.Namespace, fast: bool, device: str) -> TrainConfig:
-    """The training settings from ``--epochs``/``--max-steps``/``--threads`` and the paper's defaults."""
+def _train_config(args: argparse.Namespace, settings: RunSettings) -> TrainConfig:
+    """The training settings: the paper's epochs, capped by fast mode (:meth:`RunSettings.train_config`),
+    then ``--epochs``/``--max-steps``/``--threads`` as given."""
+    from dataclasses import replace
+
     from .train import TrainConfig
 
-    paper = PAPER_EPOCHS[args.experiment]
-    epochs = args.epochs or (min(paper, FAST_EPOCHS) if fast else paper)
-    max_steps = args.max_steps or (FAST_MAX_STEPS if fast else None)
-    return TrainConfig(epochs=epochs, device=device, max_steps=max_steps, num_threads=args.threads)
+    config = settings.train_config(TrainConfig(epochs=PAPER_EPOCHS[args.experiment]))
+    given = {k: v for k, v in (("epochs", args.epochs), ("max_steps", args.max_steps),
+                               ("num_threads", args.threads)) if v is not None}
+    return replace(config, **given)
 
 
 def _log(line: str) -> None:
     print(line, flush=True)
 
 
-def _prepare(args: argparse.Namespace) -> tuple[bool, list[int], str, Path, Any, TrainConfig]:
-    """Shared start of both subcommands: mode, seeds, device, output folder, data, training settings."""
-    from .config import fast_mode
+def _prepare(args: argparse.Namespace) -> tuple[RunSettings, Path, Any, TrainConfig]:
+    """Shared start of both subcommands: run settings, output folder, data, training settings."""
+    from .config import RunSettings
 
-    try:
-        fast = fast_mode(args.fast)
-    except ValueError as err:  # an unrecognised DANAE_FAST value
-        raise UsageError(str(err)) from None
     seeds = [int(s) for s in args.seeds]
     if len(set(seeds)) != len(seeds):
         raise UsageError(f"--seeds {' '.join(map(str, seeds))}: each seed may appear only once")
     device = _check_device(args.device)
+    try:
+        settings = RunSettings.from_env(fast=args.fast, cache=args.cache, n_jobs=args.jobs, seeds=tuple(seeds),
+                                        device=device)
+    except ValueError as err:  # an unrecognised DANAE_FAST or DANAE_JOBS value
+        raise UsageError(str(err)) from None
     out_dir = _out_dir(args)
 
     import matplotlib
@@ -493,12 +503,12 @@ def _prepare(args: argparse.Namespace) -> tuple[bool, list[int], str, Path, Any,
 
     from . import pipeline
 
-    exp = load_data(args, fast)
+    exp = load_data(args, settings.fast)
     if args.threads:
         torch.set_num_threads(args.threads)
-    config = _train_config(args, fast, device)
+    config = _train_config(args, settings)
     pipeline.check_lengths(exp, config)
-    return fast, seeds, device, out_dir, exp, config
+    return settings, out_dir, exp, config
 
 
 def reproduce(args: argparse.Namespace) -> int:
@@ -508,7 +518,8 @@ def reproduce(args: argparse.Namespace) -> int:
     if args.experiment in LEADERBOARD_ONLY:
         raise UsageError(f"--experiment {args.experiment}: the paper has no such experiment to reproduce; "
                          f"run '{PROG} leaderboard --experiment {args.experiment}'")
-    fast, seeds, device, out_dir, exp, config = _prepare(args)
+    settings, out_dir, exp, config = _prepare(args)
+    fast, seeds, device = settings.fast, list(settings.seeds), settings.device
     angles = EXPERIMENT_ANGLES[args.experiment]
 
     print(exp.note)
@@ -516,7 +527,8 @@ def reproduce(args: argparse.Namespace) -> int:
           f"train {', '.join(r.name for r in exp.train)} | test {', '.join(r.name for r in exp.test)}")
     print(f"training: angles {', '.join(angles)} | seeds {' '.join(map(str, seeds))} | epochs {config.epochs} | "
           f"max steps {config.max_steps if config.max_steps is not None else 'none'} | device {device}", flush=True)
-    rep = pipeline.reproduce(exp, angles=angles, seeds=seeds, config=config, progress=sys.stdout.isatty(), log=_log)
+    rep = pipeline.reproduce(exp, angles=angles, seeds=seeds, config=config, progress=sys.stdout.isatty(),
+                             cache=settings.cache, jobs=settings.jobs, log=_log)
     written = rep.write(out_dir)
     if args.save_models:
         written += _save_models(rep, out_dir / "models")
@@ -535,14 +547,16 @@ def leaderboard(args: argparse.Namespace) -> int:
 
     from .leaderboard import run_leaderboard
 
-    fast, seeds, device, out_dir, exp, config = _prepare(args)
+    settings, out_dir, exp, config = _prepare(args)
+    fast, seeds, device = settings.fast, list(settings.seeds), settings.device
     methods = args.methods or _method_names()
     print(exp.note)
     print(f"leaderboard {exp.name} | data: {exp.data} | mode: {'fast' if fast else 'full'} | "
           f"train {', '.join(r.name for r in exp.train)} | test {', '.join(r.name for r in exp.test)} | "
           f"methods {' '.join(methods)} | DANAE seeds {' '.join(map(str, seeds))} | device {device}", flush=True)
     t0 = time.perf_counter()
-    board = run_leaderboard(exp, methods=methods, seeds=seeds, train_config=config, progress=sys.stdout.isatty())
+    board = run_leaderboard(exp, methods=methods, seeds=seeds, train_config=config, progress=sys.stdout.isatty(),
+                            cache=settings.cache, jobs=settings.jobs)
     written = board.write(out_dir)
     with pd.option_context("display.float_format", "{:.4f}".format, "display.width", 140):
         for subset in ("all", "clean"):
@@ -598,6 +612,8 @@ def _print_summary(rep: Reproduction) -> None:
     """Print the metric table [rad] and the RMSE reductions [%] next to the paper's."""
     import pandas as pd
 
+    from .metrics import reduction_pct
+
     result = rep.to_json()
     shown = rep.metrics_frame().set_index(["method", "angle"])
     with pd.option_context("display.float_format", "{:.4f}".format, "display.width", 140):
@@ -606,10 +622,10 @@ def _print_summary(rep: Reproduction) -> None:
         print(shown.to_string(na_rep="-"))
     red = []
     for angle, kf in result["kf"].items():
-        ours = 100.0 * (1.0 - result["danae"][angle]["rmse"] / kf["rmse"])
+        ours = reduction_pct(result["danae"][angle]["rmse"], kf["rmse"])
         paper = result["paper"] or {}
         p_kf, p_dn = paper.get("kf", {}).get(angle), paper.get("danae", {}).get(angle)
-        theirs = f"{100.0 * (1.0 - p_dn['rmse'] / p_kf['rmse']):.1f} %" if p_kf and p_dn else "-"
+        theirs = f"{reduction_pct(p_dn['rmse'], p_kf['rmse']):.1f} %" if p_kf and p_dn else "-"
         red.append(f"{angle} {ours:.1f} % (paper {theirs})")
     print("RMSE reduction by DANAE: " + "; ".join(red))
     s = result["seconds"]

@@ -1,4 +1,8 @@
-"""Run-time settings read from the environment: fast mode, data directory, seeds, device.
+"""Run-time settings: read from the environment by the entry points only, then passed along.
+
+The entry points (the command line, the book's ``setup()``, ``python -m danae_lite.book``)
+build one :class:`RunSettings` from their flags and these variables; everything below them
+takes its settings as arguments and never reads the environment.
 
 ``DANAE_FAST``
     ``1``/``true``/``yes`` switches every notebook and the CLI to a reduced run (fewer epochs,
@@ -6,7 +10,10 @@
 ``DANAE_CACHE``
     Directory where trained networks are kept between chapters (keyed by a hash of their
     data and settings), so a later chapter reuses a network an earlier one trained. Unset:
-    no cache. ``make book`` and ``make test`` set it to ``_build/danae_cache``.
+    no cache. ``make execute`` and ``make test`` set it to ``_build/danae_cache``.
+``DANAE_JOBS``
+    Worker processes for independent trainings and folds (the book's setting; the command
+    line has ``--jobs``). Default 1.
 ``DANAE_DATA``
     Directory that holds the real datasets in their original layout, as sub-folders
     ``oxiod/`` (``<setting>/<dataN>/syn/imuK.csv`` + ``viK.csv``), ``broad/``
@@ -15,15 +22,22 @@
 """
 from __future__ import annotations
 
+import inspect
 import os
 import random
+from dataclasses import dataclass, field, replace
 from pathlib import Path
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
+
+if TYPE_CHECKING:
+    from .train import TrainConfig
 
 FAST_ENV = "DANAE_FAST"
 DATA_ENV = "DANAE_DATA"
 CACHE_ENV = "DANAE_CACHE"
+JOBS_ENV = "DANAE_JOBS"
 DEFAULT_SEED = 0
 
 _TRUE = {"1", "true", "yes", "on"}
@@ -96,3 +110,89 @@ def default_device(requested: str | None = None) -> str:
     import torch
 
     return "cuda" if torch.cuda.is_available() else "cpu"
+
+
+def jobs(value: int | None = None) -> int:
+    """Worker processes: ``value`` if given, else ``DANAE_JOBS``, else 1. Raises ``ValueError``
+    for a value that is not a positive integer."""
+    raw = str(value) if value is not None else os.environ.get(JOBS_ENV, "").strip() or "1"
+    try:
+        n = int(raw)
+    except ValueError:
+        n = 0
+    if n < 1:
+        origin = "jobs" if value is not None else f"${JOBS_ENV}"
+        raise ValueError(f"{origin}={raw!r}: expected a positive number of worker processes")
+    return n
+
+
+def seeding_source() -> str:
+    """The source of :func:`seed_everything`: part of a trained network's cache key."""
+    return inspect.getsource(seed_everything)
+
+
+FAST_MAX_STEPS = 300
+"""Fast mode: cap on optimiser steps per network."""
+FAST_EPOCHS = 2
+"""Fast mode: cap on the epochs per network."""
+FAST_SEEDS: tuple[int, ...] = (0,)
+"""Fast mode: training seeds (one network per angle)."""
+FULL_SEEDS: tuple[int, ...] = (0, 1, 2)
+"""Full mode: training seeds of a single train/test split."""
+
+
+@dataclass(frozen=True)
+class RunSettings:
+    """The one settings object of a run (command line, chapter or script).
+
+    Fast mode shrinks the run in one place: :meth:`train_config` caps every network at
+    :data:`FAST_MAX_STEPS` optimiser steps and :data:`FAST_EPOCHS` epochs, the default seeds
+    become :data:`FAST_SEEDS`, and :func:`danae_lite.datasets.load_experiment` shortens the
+    recordings (its ``FAST_*`` constants).
+    """
+
+    fast: bool = False
+    """Fast mode (CI, quick looks): shorter recordings, capped training, one seed."""
+    data_dir: Path | None = None
+    """Real-data directory (``oxiod/``, ``broad/``, ``ucs/``); None: the simulator stands in."""
+    seed: int = DEFAULT_SEED
+    """Seed given to python, numpy and torch at the start."""
+    seeds: tuple[int, ...] = field(default=FULL_SEEDS)
+    """Training seeds of the networks (one network per angle/head and seed)."""
+    cache: Path | None = None
+    """Trained-network cache folder, or None for no cache."""
+    jobs: int = 1
+    """Worker processes for independent trainings and folds."""
+    device: str = "cpu"
+    """Torch device of the trainings."""
+
+    @classmethod
+    def from_env(cls, *, fast: bool | None = None, data: str | os.PathLike[str] | None = None,
+                 cache: str | os.PathLike[str] | None = None, n_jobs: int | None = None,
+                 seeds: tuple[int, ...] | None = None, seed: int = DEFAULT_SEED,
+                 device: str | None = None) -> "RunSettings":
+        """Settings from explicit values, falling back to ``DANAE_FAST``, ``DANAE_DATA``,
+        ``DANAE_CACHE`` and ``DANAE_JOBS``: what an entry point calls once."""
+        is_fast = fast_mode(fast)
+        default_seeds = FAST_SEEDS if is_fast else FULL_SEEDS
+        return cls(fast=is_fast, data_dir=data_dir(data), seed=seed,
+                   seeds=tuple(int(s) for s in (seeds if seeds is not None else default_seeds)),
+                   cache=cache_dir(cache), jobs=jobs(n_jobs), device=default_device(device))
+
+    def pick(self, full: Any, fast: Any) -> Any:
+        """``fast`` in fast mode, else ``full`` (e.g. ``cfg.pick(full=20, fast=2)`` epochs)."""
+        return fast if self.fast else full
+
+    def train_config(self, base: "TrainConfig | None" = None, **overrides: Any) -> "TrainConfig":
+        """``base`` (default the paper's :class:`~danae_lite.train.TrainConfig`) with
+        ``overrides``, this run's device, and in fast mode at most :data:`FAST_EPOCHS` epochs
+        and :data:`FAST_MAX_STEPS` steps per network."""
+        from .train import TrainConfig
+
+        cfg = replace(base or TrainConfig(), **overrides)
+        if cfg.device is None:
+            cfg = replace(cfg, device=self.device)
+        if self.fast:
+            steps = FAST_MAX_STEPS if cfg.max_steps is None else min(cfg.max_steps, FAST_MAX_STEPS)
+            cfg = replace(cfg, epochs=min(cfg.epochs, FAST_EPOCHS), max_steps=steps)
+        return cfg

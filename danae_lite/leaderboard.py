@@ -120,12 +120,12 @@ class Leaderboard:
                     if no_heading:
                         figures["total_rmse_deg"] = figures["heading_rmse_deg"] = np.nan
                     per_seed.append(figures)
-                table = pd.DataFrame(per_seed)
-                std = table.std(ddof=1) if len(table) > 1 else table.iloc[0] * np.nan
+                agg = {m: (metrics.spread([f[m] for f in per_seed]) if np.isfinite(per_seed[0][m])
+                           else (np.nan, np.nan)) for m in broad.METRICS}
                 rows.append({"method": name, "causal": bool(getattr(self.methods[name], "causal", False)),
-                             "test": rec.name, **table.mean().to_dict(),
-                             **{f"{m}_std": float(std[m]) for m in broad.METRICS},
-                             "n_samples": r.n_samples, "seeds": len(table)})
+                             "test": rec.name, **{m: agg[m][0] for m in broad.METRICS},
+                             **{f"{m}_std": agg[m][1] for m in broad.METRICS},
+                             "n_samples": r.n_samples, "seeds": len(per_seed)})
         return pd.DataFrame(rows, columns=list(TRIAL_COLUMNS))
 
     def to_json(self) -> dict[str, Any]:
@@ -223,27 +223,27 @@ def _plain(obj: Any) -> Any:
 
 def _rows(name: str, causal: bool, preds: dict[str, list[NDArray[np.float64]]], exp: Experiment,
           clean: dict[str, NDArray[np.bool_]]) -> list[dict[str, Any]]:
+    """The paper's metrics per seed on all test samples taken together (all / clean), then
+    aggregated over seeds by :func:`danae_lite.metrics.spread`."""
     truth = np.concatenate([r.euler for r in exp.test])
     ok = np.concatenate([clean[r.name] for r in exp.test])
     n_seeds = len(next(iter(preds.values())))
     rows = []
     for subset, sel in (("all", np.ones(len(truth), dtype=bool)), ("clean", ok)):
         for k, a in enumerate(ANGLES):
+            row: dict[str, Any] = {"method": name, "causal": causal, "samples": subset, "angle": a,
+                                   "rmse_std": np.nan, "n": int(sel.sum())}
             per_seed = []
             for s in range(n_seeds):
                 est = np.concatenate([preds[r.name][s][:, k] for r in exp.test])
-                if np.isnan(est).all():
+                if np.isnan(est).all():  # an angle the method does not estimate (RIANN's yaw)
                     break
                 per_seed.append(metrics.metric_table(est[sel], truth[sel, k], angles=(a,))[a])
-            if not per_seed:
-                rows.append({"method": name, "causal": causal, "samples": subset, "angle": a, "mean_dev": np.nan, "max_dev": np.nan,
-                             "rmse": np.nan, "rmse_std": np.nan, "n": int(sel.sum())})
-                continue
-            m = pd.concat(per_seed, axis=1)
-            rows.append({"method": name, "causal": causal, "samples": subset, "angle": a,
-                         **{metric: float(m.loc[metric].mean()) for metric in metrics.METRICS},
-                         "rmse_std": float(m.loc["rmse"].std(ddof=1)) if len(per_seed) > 1 else np.nan,
-                         "n": int(sel.sum())})
+            for metric in metrics.METRICS:
+                row[metric] = metrics.spread([m[metric] for m in per_seed])[0] if per_seed else np.nan
+            if per_seed:
+                row["rmse_std"] = metrics.spread([m["rmse"] for m in per_seed])[1]
+            rows.append(row)
     return rows
 
 
@@ -256,6 +256,8 @@ def run_leaderboard(
     cache: str | os.PathLike[str] | None = None,
     progress: bool = True,
     extra: Sequence[Method] = (),
+    align: bool | None = None,
+    jobs: int = 1,
 ) -> Leaderboard:
     """Fit every method on ``exp.train`` and evaluate it on ``exp.test`` (see the module docstring).
 
@@ -265,10 +267,15 @@ def run_leaderboard(
     methods : names from :data:`danae_lite.baselines.METHODS`.
     seeds : DANAE training seeds (one network per angle and seed).
     train_config : DANAE settings; default the paper's (:class:`~danae_lite.train.TrainConfig`).
-    cache : trained-network cache folder (default ``DANAE_CACHE``).
+    cache : trained-network cache folder; None (default): no cache. Entry points pass the
+        folder of their settings (:class:`danae_lite.config.RunSettings`).
     progress : show a progress bar over the methods (and DANAE's training bars).
     extra : further unfitted :class:`~danae_lite.baselines.Method` objects (e.g. the variants
         of :mod:`danae_lite.variants`), fitted and evaluated after ``methods`` under their ``name``.
+    align : estimate the frame alignment on the training recordings (default: unless
+        ``exp.aligned``); False keeps the sensors' frames and the filter's heading as they are
+        (the paper's experiment, :func:`danae_lite.pipeline.reproduce`).
+    jobs : worker processes for the networks of each method (:mod:`danae_lite.networks`).
     """
     if progress:  # the notebook widget when available
         from tqdm.auto import tqdm
@@ -280,13 +287,20 @@ def run_leaderboard(
         raise ValueError(f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(METHODS)}")
     t_total = time.perf_counter()
     recs = [*exp.train, *exp.test]
+    seen: set[str] = set()
+    dup = sorted({r.name for r in recs if r.name in seen or seen.add(r.name)})
+    if dup:
+        raise ValueError(f"recording names must be unique across training and test, repeated: {', '.join(dup)}")
     clean = {r.name: clean_mask(r) for r in recs}
-    alignment = (FrameAlignment.identity() if exp.aligned
-                 else estimate_alignment(exp.train, [clean[r.name] for r in exp.train]))
+    if align is None:
+        align = not exp.aligned
+    alignment = (estimate_alignment(exp.train, [clean[r.name] for r in exp.train]) if align
+                 else FrameAlignment.identity())
     aligned_train = [alignment.apply(r) for r in exp.train]
     aligned_test = [alignment.apply(r) for r in exp.test]
-    ctx = Context(train=aligned_train, clean=clean, alignment=alignment, seeds=tuple(int(s) for s in seeds),
-                  train_config=train_config or TrainConfig(), cache=cache, progress=progress)
+    ctx = Context(train=aligned_train, clean={r.name: clean[r.name] for r in exp.train}, alignment=alignment,
+                  seeds=tuple(int(s) for s in seeds), train_config=train_config or TrainConfig(), cache=cache,
+                  jobs=jobs, progress=progress)
     fitted: dict[str, Method] = {}
     preds: dict[str, dict[str, list[NDArray[np.float64]]]] = {}
     seconds: dict[str, float] = {}

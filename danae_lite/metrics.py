@@ -167,15 +167,41 @@ def metric_table(
     return out
 
 
+def reduction_pct(value: ArrayLike, reference: ArrayLike) -> NDArray[np.float64] | float:
+    """Reduction of an error ``value`` relative to ``reference`` [%]: ``100 (1 - value / reference)``.
+
+    The one formula behind every "gain" and "reduction" of the package: positive when
+    ``value`` is the smaller error, negative when it is larger (``-50`` = 1.5 times the
+    reference). Works elementwise on arrays, Series and scalars; NaN propagates.
+    """
+    if isinstance(value, (pd.Series, pd.DataFrame)) or isinstance(reference, (pd.Series, pd.DataFrame)):
+        return 100.0 * (1.0 - value / reference)  # aligned on the index, as pandas does
+    out = 100.0 * (1.0 - np.asarray(value, dtype=float) / np.asarray(reference, dtype=float))
+    return float(out) if np.ndim(out) == 0 else out
+
+
+def spread(values: ArrayLike) -> tuple[float, float]:
+    """The one rule that aggregates repeated runs (seeds, folds, recordings): ``(mean, std)``
+    with the sample standard deviation (ddof = 1), NaN when there is a single value.
+
+    NaN entries are an error, not skipped: a missing run must be visible.
+    """
+    v = np.asarray(values, dtype=float).ravel()
+    if v.size == 0:
+        raise ValueError("no values to aggregate")
+    if np.isnan(v).any():
+        raise ValueError(f"{int(np.isnan(v).sum())} of {v.size} values are NaN; aggregate only complete runs")
+    return float(v.mean()), (float(v.std(ddof=1)) if v.size > 1 else float("nan"))
+
+
 def rmse_reduction(kf_table: pd.DataFrame, other_table: pd.DataFrame) -> pd.Series:
-    """RMSE reduction of a method over the KF per angle [%]: ``100 (1 - rmse_other / rmse_kf)``.
+    """RMSE reduction of a method over the KF per angle [%] (:func:`reduction_pct` of the
+    ``rmse`` rows).
 
     Both tables are :func:`metric_table`-style (row ``rmse``); angles missing in either
     table, or NaN, give NaN. Positive = the other method is better.
     """
-    kf = kf_table.loc["rmse"].astype(float)
-    other = other_table.loc["rmse"].astype(float)
-    red = 100.0 * (kf - other) / kf
+    red = reduction_pct(other_table.loc["rmse"].astype(float), kf_table.loc["rmse"].astype(float))
     red.name = "RMSE reduction [%]"
     return red
 

@@ -1,11 +1,12 @@
-"""The paper's pipeline as a few reusable steps: KF estimates -> one DANAE per angle -> metrics.
+"""The paper's experiment as one configuration of the leaderboard's engine.
 
-Each step calls the module that owns the work (:mod:`~danae_lite.kalman`,
-:mod:`~danae_lite.train`, :mod:`~danae_lite.metrics`); this module only wires them together
-so that chapters and the command line run exactly the same code. :func:`reproduce` runs the
-whole experiment of the paper (Table 1 or 2 and Figure 1 or 2) and returns a
-:class:`Reproduction` that can write ``metrics.json``, ``metrics.csv``, the per-seed table
-and the figure.
+:func:`reproduce` runs the paper's KF and the paper's DANAE (raw targets, every target sample,
+no frame alignment, metrics on all samples) through :func:`danae_lite.leaderboard.run_leaderboard`,
+the same code that evaluates every other method, and returns a :class:`Reproduction` (Table 1
+or 2 and Figure 1 or 2) that can write ``metrics.json``, ``metrics.csv``, the per-seed table
+and the figure. :func:`seed_study` is the step-by-step view of chapter 3: the networks of
+:func:`danae_lite.networks.train_networks` evaluated recording by recording, with both of the
+paper's reconstructions (overlap average and tiles).
 
 Angles are (roll, pitch, yaw) [rad] as everywhere in the package. As in the paper, one network
 is trained per angle, on the KF estimate of that angle as input and the ground truth of the
@@ -13,12 +14,11 @@ same angle as target.
 """
 from __future__ import annotations
 
-import hashlib
 import json
 import os
 import time
 from collections.abc import Callable, Iterable, Sequence
-from dataclasses import dataclass, replace
+from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -30,8 +30,7 @@ from . import kalman, metrics
 from .angles import ANGLES
 from .datasets import Experiment
 from .recording import DataError, Recording
-from .config import cache_dir as resolve_cache_dir
-from .train import TrainConfig, TrainResult, load_result, predict, save, train
+from .train import TrainConfig, TrainResult, predict
 
 if TYPE_CHECKING:
     import matplotlib.pyplot as plt
@@ -46,87 +45,6 @@ CSV_COLUMNS: tuple[str, ...] = ("method", "angle", "mean_dev", "max_dev", "rmse"
 def filter_all(recordings: Iterable[Recording], config: kalman.KFConfig | None = None) -> dict[str, NDArray[np.float64]]:
     """Run the paper's KF on every recording; return ``{name: euler (N, 3) [rad]}``."""
     return {r.name: kalman.run_kf(r, config).euler for r in recordings}
-
-
-def train_angle(
-    train_recs: Sequence[Recording],
-    estimates: dict[str, NDArray[np.float64]],
-    angle: str,
-    config: TrainConfig | None = None,
-    *,
-    progress: bool = True,
-    cache: str | os.PathLike[str] | None = None,
-) -> TrainResult:
-    """Train one DANAE for ``angle`` on the training recordings.
-
-    Inputs are ``estimates[rec.name][:, k]`` (the filter's angle, rad), targets
-    ``rec.euler[:, k]`` (ground truth, rad), one array per recording so that no window
-    crosses two recordings.
-
-    ``cache`` (default: the ``DANAE_CACHE`` directory, see :func:`danae_lite.config.cache_dir`;
-    none when unset) keeps trained networks on disk, keyed by a hash of the inputs, targets,
-    training settings and the source of the model/training code. A second chapter asking for
-    the same network loads it instead of training it again.
-    """
-    k = ANGLES.index(angle)
-    inputs = [np.ascontiguousarray(estimates[r.name][:, k]) for r in train_recs]
-    targets = [np.ascontiguousarray(r.euler[:, k]) for r in train_recs]
-    return train_cached(inputs, targets, config, tag=f"danae-{angle}", progress=progress, cache=cache,
-                        metadata={"angle": angle, "train": [r.name for r in train_recs]})
-
-
-def train_cached(
-    inputs: Sequence[NDArray[np.float64]],
-    targets: Sequence[NDArray[np.float64]],
-    config: TrainConfig | None = None,
-    *,
-    target_masks: Sequence[NDArray[np.bool_]] | None = None,
-    tag: str = "danae",
-    progress: bool = True,
-    cache: str | os.PathLike[str] | None = None,
-    metadata: dict[str, Any] | None = None,
-) -> TrainResult:
-    """:func:`danae_lite.train.train` with an on-disk cache.
-
-    The file is ``<cache>/<tag>-seed<seed>-<hash>.pt``, the hash covering the inputs, targets,
-    target masks, training settings and the source of the code that builds, windows, seeds
-    and trains the network (:mod:`~danae_lite.model`, :mod:`~danae_lite.train`,
-    :mod:`~danae_lite.windows`, :mod:`~danae_lite.config`), not the device or thread count.
-    A file with the same hash under another tag is the same network and is loaded.
-    ``cache`` defaults to ``DANAE_CACHE`` (none when unset).
-    """
-    config = config or TrainConfig()
-    inputs = [np.ascontiguousarray(a) for a in inputs]
-    targets = [np.ascontiguousarray(a) for a in targets]
-    masks = None if target_masks is None else [np.ascontiguousarray(m, dtype=bool) for m in target_masks]
-    folder = resolve_cache_dir(cache)
-    key = _cache_key([*inputs, *(masks or [])], targets, config)
-    path = folder / f"{tag}-seed{config.seed}-{key}.pt" if folder else None
-    if folder is not None:
-        # the key alone identifies the network: one trained under another tag is the same one
-        for found in sorted(folder.glob(f"*-seed{config.seed}-{key}.pt")):
-            return load_result(found)
-    res = train(inputs, targets, config, progress=progress, target_masks=masks)
-    if path is not None:
-        save(res, path, metadata=metadata or {"tag": tag})
-    return res
-
-
-def _cache_key(inputs: list[NDArray[np.float64]], targets: list[NDArray[np.float64]], config: TrainConfig) -> str:
-    """Hash of everything that determines a trained network (not the device or thread count):
-    the data, the settings, and the source of the code that builds, windows, seeds and trains it."""
-    from . import config as config_module, model as model_module, train as train_module
-    from . import windows as windows_module
-
-    h = hashlib.sha256()
-    for module in (model_module, train_module, windows_module, config_module):
-        h.update(Path(module.__file__).read_bytes())
-    settings = {k: v for k, v in config.to_dict().items() if k not in ("device", "num_threads")}
-    h.update(repr(sorted(settings.items())).encode())
-    for a in (*inputs, *targets):
-        h.update(str(a.shape).encode())
-        h.update(a.astype(np.float64).tobytes())
-    return h.hexdigest()[:16]
 
 
 @dataclass
@@ -149,10 +67,11 @@ class SeedStudy:
         t = self.table
         kf = t[t.method == "kf"].set_index(["test", "angle", "seed"])["rmse"]
         dn = t[t.method == method].set_index(["test", "angle", "seed"])["rmse"]
-        red = (100.0 * (1.0 - dn / kf)).rename("reduction [%]").reset_index()
+        red = metrics.reduction_pct(dn, kf).rename("reduction [%]").reset_index()
         out = red.pivot_table(index="seed", columns="angle", values="reduction [%]", aggfunc="mean")
-        out.loc["mean"] = out.mean()
-        out.loc["std"] = out.iloc[:-1].std(ddof=1) if len(out) > 2 else np.nan
+        agg = {a: metrics.spread(out[a]) for a in out.columns}
+        out.loc["mean"] = {a: m for a, (m, _) in agg.items()}
+        out.loc["std"] = {a: sd for a, (_, sd) in agg.items()}
         return out
 
 
@@ -167,6 +86,7 @@ def seed_study(
     stitches: Sequence[str] = ("overlap", "tiles"),
     progress: bool = True,
     cache: str | os.PathLike[str] | None = None,
+    jobs: int = 1,
 ) -> SeedStudy:
     """Train one DANAE per angle and seed; evaluate KF and DANAE on every test recording.
 
@@ -174,25 +94,29 @@ def seed_study(
     ``"overlap"`` reconstruction covers every sample. The ``"tiles"`` reconstruction (the
     paper's non-overlapping windows) leaves the last ``N mod window`` samples uncovered; its
     rows are computed on the covered samples only and the ``samples`` column says how many.
-    The KF rows always use every sample. ``cache`` is passed to :func:`train_angle`.
+    The KF rows always use every sample. Inputs are ``estimates[name][:, k]`` (the filter's
+    angle, rad), targets the ground truth of the same angle (rad), one array per recording so
+    that no window crosses two recordings; ``cache`` and ``jobs`` are passed to
+    :func:`danae_lite.networks.train_networks`.
     """
-    base = config or TrainConfig()
-    results: dict[tuple[str, int], TrainResult] = {}
+    from .networks import train_networks
+
+    results = train_networks({a: [estimates[r.name][:, ANGLES.index(a)] for r in train_recs] for a in angles},
+                             {a: [r.euler[:, ANGLES.index(a)] for r in train_recs] for a in angles},
+                             config or TrainConfig(), seeds, tag="danae",
+                             metadata={"train": [r.name for r in train_recs]}, cache=cache, jobs=jobs,
+                             progress=progress)
     preds: dict[tuple[str, int, str], dict[str, NDArray[np.float64]]] = {}
     rows = []
-    for angle in angles:
+    for (angle, seed), res in results.items():
         k = ANGLES.index(angle)
-        for seed in seeds:
-            res = train_angle(train_recs, estimates, angle, replace(base, seed=int(seed)), progress=progress,
-                              cache=cache)
-            results[(angle, int(seed))] = res
-            for rec in test_recs:
-                est, truth = estimates[rec.name][:, k], rec.euler[:, k]
-                rows.append(_row(rec.name, angle, seed, "kf", est, truth))
-                for stitch in stitches:
-                    p = predict(res, est, stitch=stitch)[:, 0]
-                    preds.setdefault((angle, int(seed), stitch), {})[rec.name] = p
-                    rows.append(_row(rec.name, angle, seed, f"danae ({stitch})", p, truth))
+        for rec in test_recs:
+            est, truth = estimates[rec.name][:, k], rec.euler[:, k]
+            rows.append(_row(rec.name, angle, seed, "kf", est, truth))
+            for stitch in stitches:
+                pred = predict(res, est, stitch=stitch)[:, 0]
+                preds.setdefault((angle, seed, stitch), {})[rec.name] = pred
+                rows.append(_row(rec.name, angle, seed, f"danae ({stitch})", pred, truth))
     return SeedStudy(results=results, predictions=preds, table=pd.DataFrame(rows))
 
 
@@ -207,18 +131,6 @@ def _row(test: str, angle: str, seed: int, method: str, est: NDArray[np.float64]
 # ---------------------------------------------------------------------------------------
 MetricDict = dict[str, float]
 """``{"mean_dev", "max_dev", "rmse"}`` [rad] (DANAE: also ``"rmse_std"``)."""
-
-
-def merge_studies(studies: Sequence[SeedStudy]) -> SeedStudy:
-    """Join several :class:`SeedStudy` objects (e.g. one per angle and seed) into one."""
-    results: dict[tuple[str, int], TrainResult] = {}
-    preds: dict[tuple[str, int, str], dict[str, NDArray[np.float64]]] = {}
-    for s in studies:
-        results.update(s.results)
-        for key, per_test in s.predictions.items():
-            preds.setdefault(key, {}).update(per_test)
-    table = pd.concat([s.table for s in studies], ignore_index=True) if studies else pd.DataFrame()
-    return SeedStudy(results=results, predictions=preds, table=table)
 
 
 def check_lengths(exp: Experiment, config: TrainConfig) -> None:
@@ -238,39 +150,6 @@ def check_lengths(exp: Experiment, config: TrainConfig) -> None:
 
 def _joined(arrays: Iterable[NDArray[np.float64]]) -> NDArray[np.float64]:
     return np.concatenate([np.asarray(a, dtype=float) for a in arrays])
-
-
-def _metric_dict(est: NDArray[np.float64], truth: NDArray[np.float64], angle: str) -> MetricDict:
-    table = metrics.metric_table(est, truth, angles=(angle,))
-    return {m: float(table.loc[m, angle]) for m in metrics.METRICS}
-
-
-def aggregate_metrics(
-    test_recs: Sequence[Recording],
-    estimates: dict[str, NDArray[np.float64]],
-    predictions: dict[tuple[str, int, str], dict[str, NDArray[np.float64]]],
-    angles: Sequence[str],
-    seeds: Sequence[int],
-    stitch: str = "overlap",
-) -> tuple[dict[str, MetricDict], dict[str, MetricDict]]:
-    """The paper's metrics [rad] on all test samples taken together (errors wrapped).
-
-    Returns ``(kf, danae)``, each ``{angle: {mean_dev, max_dev, rmse}}``. DANAE values are the
-    mean over ``seeds`` of the per-seed metrics, plus ``rmse_std``: the sample standard
-    deviation of the RMSE over seeds (0.0 with one seed).
-    """
-    kf_out: dict[str, MetricDict] = {}
-    danae_out: dict[str, MetricDict] = {}
-    for angle in angles:
-        k = ANGLES.index(angle)
-        truth = _joined(r.euler[:, k] for r in test_recs)
-        kf_out[angle] = _metric_dict(_joined(estimates[r.name][:, k] for r in test_recs), truth, angle)
-        per_seed = [_metric_dict(_joined(predictions[(angle, int(s), stitch)][r.name] for r in test_recs), truth, angle)
-                    for s in seeds]
-        danae_out[angle] = {m: float(np.mean([d[m] for d in per_seed])) for m in metrics.METRICS}
-        rmses = [d["rmse"] for d in per_seed]
-        danae_out[angle]["rmse_std"] = float(np.std(rmses, ddof=1)) if len(rmses) > 1 else 0.0
-    return kf_out, danae_out
 
 
 def paper_values(experiment: str, angles: Sequence[str]) -> dict[str, dict[str, MetricDict]] | None:
@@ -310,7 +189,8 @@ class Reproduction:
     kf: dict[str, MetricDict]
     """``{angle: {mean_dev, max_dev, rmse}}`` of the KF [rad]."""
     danae: dict[str, MetricDict]
-    """``{angle: {mean_dev, max_dev, rmse, rmse_std}}`` of DANAE, mean (and RMSE std) over seeds [rad]."""
+    """``{angle: {mean_dev, max_dev, rmse, rmse_std}}`` of DANAE, mean (and RMSE std) over seeds [rad];
+    ``rmse_std`` is NaN with one seed (:func:`danae_lite.metrics.spread`)."""
     paper: dict[str, dict[str, MetricDict]] | None
     """The paper's values in the layout of ``kf``/``danae`` under keys "kf" and "danae", or None."""
     seconds: dict[str, float]
@@ -346,7 +226,7 @@ class Reproduction:
             "test": self.test,
             "seeds": list(self.seeds),
             "kf": self.kf,
-            "danae": self.danae,
+            "danae": {a: {k: (None if not np.isfinite(v) else v) for k, v in m.items()} for a, m in self.danae.items()},
             "paper": self.paper,
             "seconds": {k: float(self.seconds[k]) for k in ("kf", "train", "total")},
         }
@@ -368,7 +248,7 @@ class Reproduction:
 
         Rows ``(method, metric)`` with method "KF"/"DANAE" and metric in
         :data:`~danae_lite.metrics.METRICS`; columns ``(angle, source)`` with source "ours"
-        (DANAE: mean over seeds), "seed std" (DANAE RMSE only: sample std over seeds, 0 with
+        (DANAE: mean over seeds), "seed std" (DANAE RMSE only: sample std over seeds, NaN with
         one seed; NaN elsewhere) and "paper" (NaN where the paper gives no value).
         """
         blocks = {}
@@ -388,7 +268,7 @@ class Reproduction:
         Rows "ours" (DANAE RMSE = mean over seeds) and "paper" (from its table); columns the
         angles and their "mean".
         """
-        ours = pd.Series({a: 100.0 * (1.0 - self.danae[a]["rmse"] / self.kf[a]["rmse"]) for a in self.angles})
+        ours = pd.Series({a: metrics.reduction_pct(self.danae[a]["rmse"], self.kf[a]["rmse"]) for a in self.angles})
         paper = metrics.paper_rmse_reduction(self.experiment.name).reindex(list(self.angles))
         out = pd.DataFrame({"ours": ours, "paper": paper}).T
         out["mean"] = out.mean(axis=1)
@@ -467,29 +347,6 @@ class Reproduction:
         return paths
 
 
-def _train_networks(
-    exp: Experiment,
-    estimates: dict[str, NDArray[np.float64]],
-    angles: Sequence[str],
-    seeds: Sequence[int],
-    config: TrainConfig,
-    progress: bool,
-    cache: str | os.PathLike[str] | None,
-    log: Callable[[str], None],
-) -> SeedStudy:
-    """One :func:`seed_study` per angle and seed (overlap stitch), logged one line each."""
-    studies = []
-    for angle in angles:
-        for seed in seeds:
-            study = seed_study(exp.train, exp.test, estimates, angles=(angle,), seeds=(seed,), config=config,
-                               stitches=("overlap",), progress=progress, cache=cache)
-            studies.append(study)
-            res, t = study.results[(angle, seed)], study.table
-            log(f"  {angle:<5} seed {seed}: {res.steps} steps in {res.seconds:.1f} s on {res.device}; test RMSE "
-                f"KF {t[t.method == 'kf'].rmse.mean():.4f} -> DANAE {t[t.method == 'danae (overlap)'].rmse.mean():.4f} rad")
-    return merge_studies(studies)
-
-
 def reproduce(
     exp: Experiment,
     *,
@@ -499,10 +356,15 @@ def reproduce(
     kf_config: kalman.KFConfig | None = None,
     progress: bool = True,
     cache: str | os.PathLike[str] | None = None,
+    jobs: int = 1,
     log: Callable[[str], None] | None = print,
 ) -> Reproduction:
     """Run the paper's experiment on ``exp``: KF on every recording, one DANAE per angle and
     seed trained on ``exp.train``, the paper's metrics on ``exp.test``.
+
+    It is the leaderboard (:func:`danae_lite.leaderboard.run_leaderboard`) configured as the
+    paper: methods ``paper_kf`` and ``danae`` with raw targets on every sample
+    (``Danae(targets="raw", clean_targets=False)``), no frame alignment, metrics on all samples.
 
     Parameters
     ----------
@@ -512,14 +374,20 @@ def reproduce(
     config : training settings; its ``seed`` is replaced by each of ``seeds``.
     kf_config : filter settings; default the paper's (identity covariances, dt = 1/fs).
     progress : show a progress bar while training.
-    cache : trained-network cache, passed to :func:`train_angle` (default ``DANAE_CACHE``).
+    cache : trained-network cache folder (None: no cache), see :mod:`danae_lite.networks`.
+    jobs : worker processes for the networks.
     log : called with one line after the KF and after each network; None for silence.
 
     Returns
     -------
     Reproduction
-        Estimates, networks, predictions and the aggregated metrics (see :func:`aggregate_metrics`).
+        Estimates, networks, predictions and the metrics: per seed on all test samples taken
+        together (errors wrapped), then mean and standard deviation over seeds
+        (:func:`danae_lite.metrics.spread`: the standard deviation is NaN with one seed).
     """
+    from .baselines import Danae, PaperKF
+    from .leaderboard import run_leaderboard
+
     t_start = time.perf_counter()
     say = log or (lambda _line: None)
     angles, seeds = tuple(angles), [int(s) for s in seeds]
@@ -529,20 +397,40 @@ def reproduce(
     if not seeds or len(set(seeds)) != len(seeds):
         raise ValueError(f"seeds must be distinct and non-empty, got {seeds}")
     check_lengths(exp, config)
-    kf_config = kf_config or kalman.KFConfig()
-
-    t0 = time.perf_counter()
-    estimates = filter_all([*exp.train, *exp.test], kf_config)
-    seconds_kf = time.perf_counter() - t0
-    say(f"KF on {len(exp.train) + len(exp.test)} recordings: {seconds_kf:.2f} s")
-
-    t0 = time.perf_counter()
-    study = _train_networks(exp, estimates, angles, seeds, config, progress, cache, say)
-    seconds_train = time.perf_counter() - t0
-
-    kf_out, danae_out = aggregate_metrics(exp.test, estimates, study.predictions, angles, seeds)
+    kf = PaperKF(kf_config)
+    danae = Danae(targets="raw", clean_targets=False, angles=angles)
+    board = run_leaderboard(exp, methods=(), extra=[kf, danae], seeds=seeds, train_config=config, cache=cache,
+                            progress=progress, align=False, jobs=jobs)
+    estimates = {**danae.kf_train, **{r.name: kf.raw(r) for r in exp.test}}
+    say(f"KF on {len(exp.train) + len(exp.test)} recordings: {board.seconds['paper_kf']:.2f} s")
+    study = _study(exp, estimates, danae, board)
+    for (angle, seed), res in danae.results.items():
+        t = study.table[(study.table.angle == angle) & (study.table.seed == seed)]
+        say(f"  {angle:<5} seed {seed}: {res.steps} steps in {res.seconds:.1f} s on {res.device}; test RMSE "
+            f"KF {t[t.method == 'kf'].rmse.mean():.4f} -> DANAE {t[t.method == 'danae (overlap)'].rmse.mean():.4f} rad")
+    rows = board.table[board.table.samples == "all"].set_index(["method", "angle"])
+    block = {m: {a: {k: float(rows.loc[(m, a), k]) for k in metrics.METRICS} for a in angles}
+             for m in ("paper_kf", "danae")}
+    for a in angles:
+        block["danae"][a]["rmse_std"] = float(rows.loc[("danae", a), "rmse_std"])
     return Reproduction(
-        experiment=exp, angles=angles, seeds=seeds, estimates=estimates, study=study, kf=kf_out, danae=danae_out,
-        paper=paper_values(exp.name, angles),
-        seconds={"kf": seconds_kf, "train": seconds_train, "total": time.perf_counter() - t_start},
-        config=config, kf_config=kf_config)
+        experiment=exp, angles=angles, seeds=seeds, estimates=estimates, study=study, kf=block["paper_kf"],
+        danae=block["danae"], paper=paper_values(exp.name, angles),
+        seconds={"kf": board.seconds["paper_kf"], "train": board.seconds["danae"],
+                 "total": time.perf_counter() - t_start},
+        config=config, kf_config=kf.config)
+
+
+def _study(exp: Experiment, estimates: dict[str, NDArray[np.float64]], danae: Any, board: Any) -> SeedStudy:
+    """The per-recording view of a reproduction's DANAE (stitch "overlap")."""
+    preds: dict[tuple[str, int, str], dict[str, NDArray[np.float64]]] = {}
+    rows = []
+    for (angle, seed), _ in danae.results.items():
+        k = ANGLES.index(angle)
+        s_index = list(board.seeds).index(seed)
+        for rec in exp.test:
+            pred = board.predictions["danae"][rec.name][s_index][:, k]
+            preds.setdefault((angle, seed, "overlap"), {})[rec.name] = pred
+            rows.append(_row(rec.name, angle, seed, "kf", estimates[rec.name][:, k], rec.euler[:, k]))
+            rows.append(_row(rec.name, angle, seed, "danae (overlap)", pred, rec.euler[:, k]))
+    return SeedStudy(results=dict(danae.results), predictions=preds, table=pd.DataFrame(rows))

@@ -106,20 +106,19 @@ class DanaeOn(Method):
         return replace(self.ctx.train_config, seed=int(seed), normalize="standard", **self.overrides)
 
     def fit(self, ctx: Context) -> "DanaeOn":
-        from .pipeline import train_cached
+        from .networks import train_networks
 
         if self.source == "danae":
             raise ValueError("a DANAE variant cannot take DANAE's own output as its source")
         self.ctx = ctx
         self.base = ctx.method(self.source)
-        xs = [self._features(r) for r in ctx.train]
-        ys = [to_circle(r.euler) for r in ctx.train]
+        xs = {"joint": [self._features(r) for r in ctx.train]}
+        ys = {"joint": [to_circle(r.euler) for r in ctx.train]}
         masks = [ctx.clean[r.name] for r in ctx.train]
-        self.results = {}
-        for seed in ctx.seeds:
-            self.results[int(seed)] = train_cached(
-                xs, ys, self.config(seed), target_masks=masks, tag=f"variant-{self.name}", progress=ctx.progress,
-                cache=ctx.cache, metadata={"variant": self.name, "train": [r.name for r in ctx.train]})
+        nets = train_networks(xs, ys, self.config(ctx.seeds[0]), ctx.seeds, masks=masks, tag="variant",
+                              metadata={"variant": self.name, "train": [r.name for r in ctx.train]},
+                              cache=ctx.cache, jobs=ctx.jobs, progress=ctx.progress)
+        self.results = {seed: res for (_, seed), res in nets.items()}
         cfg = self.config(ctx.seeds[0])
         self.params = {"source": self.source, "inputs": list(self._channels()), "arch": cfg.arch,
                        "window": cfg.window, "loss_start": cfg.loss_start, "seeds": list(ctx.seeds),
@@ -202,6 +201,7 @@ def generalisation(scenarios: dict[str, Any], *, sources: tuple[str, ...] = ("pa
 
     from .datasets import Experiment
     from .leaderboard import run_leaderboard
+    from .metrics import reduction_pct
 
     rows = []
     for a, exp_a in scenarios.items():
@@ -214,5 +214,5 @@ def generalisation(scenarios: dict[str, Any], *, sources: tuple[str, ...] = ("pa
                 for angle in ("roll", "pitch", "yaw"):
                     f, d = float(w.loc[s, angle]), float(w.loc[f"danae[{s}]", angle])
                     rows.append({"train": a, "test": b, "source": s, "angle": angle, "filter_rmse": f,
-                                 "danae_rmse": d, "gain_pct": 100.0 * (1.0 - d / f)})
+                                 "danae_rmse": d, "gain_pct": reduction_pct(d, f)})
     return pd.DataFrame(rows)

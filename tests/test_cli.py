@@ -51,11 +51,13 @@ def check_outputs(out: Path, experiment: str, data: str, seeds: list[int]) -> di
         for angle in angles:
             vals = m[method][angle]
             assert list(vals) == keys
-            assert all(isinstance(v, float) and math.isfinite(v) and v >= 0 for v in vals.values())
+            one_seed_std = method == "danae" and len(seeds) == 1
+            assert all(isinstance(v, float) and math.isfinite(v) and v >= 0 for k, v in vals.items()
+                       if not (one_seed_std and k == "rmse_std"))
             assert vals["mean_dev"] <= vals["rmse"] + 1e-12 and vals["rmse"] <= vals["max_dev"] + 1e-12
             assert vals["max_dev"] <= math.pi  # errors are wrapped to [-pi, pi)
         if method == "danae" and len(seeds) == 1:
-            assert all(m["danae"][a]["rmse_std"] == 0.0 for a in angles)
+            assert all(m["danae"][a]["rmse_std"] is None for a in angles)  # no spread from one seed
     assert list(m["paper"]) == ["kf", "danae"]
     for method in ("kf", "danae"):
         assert list(m["paper"][method]) == angles
@@ -73,7 +75,7 @@ def check_outputs(out: Path, experiment: str, data: str, seeds: list[int]) -> di
         for k in METRIC_KEYS:
             assert getattr(row, k) == pytest.approx(ours[k], rel=1e-12)
             assert getattr(row, f"paper_{k}") == pytest.approx(paper[k], rel=1e-12)
-        if row.method == "kf":
+        if row.method == "kf" or ours["rmse_std"] is None:
             assert np.isnan(row.rmse_std)
         else:
             assert row.rmse_std == pytest.approx(ours["rmse_std"], abs=1e-15)

@@ -1,6 +1,4 @@
 """The pipeline wires KF -> DANAE -> metrics; check its bookkeeping on small simulated data."""
-import pathlib
-
 import numpy as np
 import pytest
 import torch
@@ -40,56 +38,6 @@ def test_seed_study_tables(recs):
     assert red.loc[1, "roll"] == pytest.approx(100 * (1 - row / kf_rmse))
     assert red.loc["mean", "roll"] == pytest.approx(red.loc[[0, 1], "roll"].mean())
 
-
-def test_train_angle_cache_reuses_the_network(recs, tmp_path):
-    est = pipeline.filter_all(recs)
-    cfg = TrainConfig(max_steps=5, num_threads=1)
-    first = pipeline.train_angle(recs[1:], est, "pitch", cfg, progress=False, cache=tmp_path)
-    files = list(tmp_path.glob("danae-pitch-seed0-*.pt"))
-    assert len(files) == 1
-    again = pipeline.train_angle(recs[1:], est, "pitch", cfg, progress=False, cache=tmp_path)
-    assert again.steps == first.steps and again.best_step == first.best_step
-    assert again.history.equals(first.history)
-    x = est[recs[0].name][:, 1]
-    from danae_lite.train import predict
-    np.testing.assert_array_equal(predict(again, x), predict(first, x))
-    # another seed or other data is another entry
-    pipeline.train_angle(recs[1:], est, "pitch", TrainConfig(max_steps=5, num_threads=1, seed=1), progress=False,
-                         cache=tmp_path)
-    pipeline.train_angle(recs[:2], est, "pitch", cfg, progress=False, cache=tmp_path)
-    assert len(list(tmp_path.glob("*.pt"))) == 3
-
-
-
-def test_cached_network_is_found_under_another_tag(recs, tmp_path):
-    est = pipeline.filter_all(recs)
-    xs = [est[r.name][:, 0] for r in recs[1:]]
-    ys = [r.euler[:, 0] for r in recs[1:]]
-    cfg = TrainConfig(max_steps=5, num_threads=1)
-    first = pipeline.train_cached(xs, ys, cfg, tag="chapter-a", progress=False, cache=tmp_path)
-    again = pipeline.train_cached(xs, ys, cfg, tag="chapter-b", progress=False, cache=tmp_path)
-    assert [p.name.split("-seed")[0] for p in tmp_path.glob("*.pt")] == ["chapter-a"]  # not trained twice
-    for k, v in first.model.state_dict().items():
-        assert torch.equal(v, again.model.state_dict()[k]), k
-
-
-@pytest.mark.parametrize("module", ["model", "train", "windows", "config"])
-def test_cache_key_covers_the_code_that_makes_the_network(recs, tmp_path, monkeypatch, module):
-    # windowing and seeding change a trained network as much as the model and the loop do
-    import importlib
-
-    mod = importlib.import_module(f"danae_lite.{module}")
-    xs, ys = [recs[0].euler[:, 0]], [recs[1].euler[:, 0]]
-    cfg = TrainConfig(max_steps=5)
-    before = pipeline._cache_key(xs, ys, cfg)
-    edited = tmp_path / f"{module}.py"
-    edited.write_bytes(pathlib.Path(mod.__file__).read_bytes() + b"\n# an edit\n")
-    monkeypatch.setattr(mod, "__file__", str(edited))
-    assert pipeline._cache_key(xs, ys, cfg) != before
-    monkeypatch.undo()
-    assert pipeline._cache_key(xs, ys, cfg) == before
-    # the thread count and the device only change rounding: same network, same key
-    assert pipeline._cache_key(xs, ys, TrainConfig(max_steps=5, num_threads=3, device="cpu")) == before
 
 def test_reproduce_metrics_match_an_independent_computation(recs, tmp_path):
     """reproduce(): the JSON numbers are metric_table on the joined test samples, DANAE a mean over seeds."""

@@ -1,0 +1,171 @@
+"""Train DANAE networks: one per head (angle, or all angles jointly) and seed, cached, in parallel.
+
+This is the one place where the book, the command line and every method of the leaderboard
+train networks. :func:`train_networks` takes one input/target array per training recording
+for each *head* (``"roll"``, ``"pitch"``, ``"yaw"`` for the paper's one-network-per-angle
+DANAE; ``"joint"`` for a variant that predicts all angles at once), and returns a
+:class:`~danae_lite.train.TrainResult` per ``(head, seed)``.
+
+* **Cache** (``cache``, a folder or None): passed in by the entry point, never read from the
+  environment here. A network is stored as ``<cache>/<tag>-seed<seed>-<key>.pt``, ``key``
+  hashing everything that determines it (:func:`cache_key`); a network with the same key
+  under another tag is the same network and is loaded.
+* **Parallel** (``jobs``): the trainings that the cache does not hold run in ``jobs`` worker
+  processes (:class:`concurrent.futures.ProcessPoolExecutor`, ``spawn`` start), each with
+  ``max(1, cores // jobs)`` torch threads unless the configuration fixes ``num_threads``.
+  A network does not depend on the number of threads beyond float rounding
+  (``tests/test_train.py``), so ``jobs`` changes the wall time, not the results.
+"""
+from __future__ import annotations
+
+import hashlib
+import os
+from collections.abc import Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass, replace
+from multiprocessing import get_context
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .train import TrainConfig, TrainResult, load_result, save, train
+
+Array = NDArray[np.float64]
+
+
+@dataclass(frozen=True)
+class NetworkJob:
+    """Everything one training needs: data per training recording, settings, cache name."""
+
+    inputs: tuple[Array, ...]
+    """Input per training recording, (N,) or (N, C)."""
+    targets: tuple[Array, ...]
+    """Target per training recording, (N,) or (N, D), same N."""
+    masks: tuple[NDArray[np.bool_], ...] | None
+    """Target samples allowed in the loss, per recording; None: all."""
+    config: TrainConfig
+    tag: str
+    metadata: Mapping[str, Any]
+
+
+def cache_key(job: NetworkJob) -> str:
+    """16 hex digits of a SHA-256 over the data, the settings (not the device or thread count)
+    and the source of the code that builds, windows, seeds and trains the network."""
+    from . import model as model_module, train as train_module, windows as windows_module
+    from .config import seeding_source
+
+    h = hashlib.sha256()
+    for module in (model_module, train_module, windows_module):
+        h.update(Path(module.__file__).read_bytes())
+    h.update(seeding_source().encode())
+    settings = {k: v for k, v in job.config.to_dict().items() if k not in ("device", "num_threads")}
+    h.update(repr(sorted(settings.items())).encode())
+    for a in (*job.inputs, *(job.masks or ()), *job.targets):
+        h.update(str(a.shape).encode())
+        h.update(np.asarray(a, dtype=np.float64).tobytes())
+    return h.hexdigest()[:16]
+
+
+def _cached(job: NetworkJob, folder: Path | None) -> TrainResult | None:
+    if folder is None:
+        return None
+    for found in sorted(folder.glob(f"*-seed{job.config.seed}-{cache_key(job)}.pt")):
+        return load_result(found)
+    return None
+
+
+def _store(job: NetworkJob, res: TrainResult, folder: Path | None) -> None:
+    if folder is not None:
+        folder.mkdir(parents=True, exist_ok=True)
+        save(res, folder / f"{job.tag}-seed{job.config.seed}-{cache_key(job)}.pt", metadata=dict(job.metadata))
+
+
+def _run(job: NetworkJob, progress: bool) -> TrainResult:
+    return train(list(job.inputs), list(job.targets), job.config, progress=progress,
+                 target_masks=None if job.masks is None else list(job.masks))
+
+
+def _worker_init(threads: int) -> None:
+    import torch
+
+    torch.set_num_threads(threads)
+
+
+def run_jobs(jobs_: Sequence[NetworkJob], *, cache: str | os.PathLike[str] | None = None, jobs: int = 1,
+             progress: bool = False) -> list[TrainResult]:
+    """Train every job (or load it from ``cache``); results in the order of ``jobs_``.
+
+    ``jobs`` > 1 trains the missing networks in that many worker processes (see the module
+    docstring); their results are stored in the cache by this process.
+    """
+    folder = Path(cache).expanduser().resolve() if cache is not None else None
+    results: list[TrainResult | None] = [_cached(j, folder) for j in jobs_]
+    todo = [i for i, r in enumerate(results) if r is None]
+    if jobs > 1 and len(todo) > 1:
+        threads = max(1, (os.cpu_count() or 1) // jobs)
+        with ProcessPoolExecutor(max_workers=min(jobs, len(todo)), mp_context=get_context("spawn"),
+                                 initializer=_worker_init, initargs=(threads,)) as pool:
+            futures = {i: pool.submit(_run, replace(jobs_[i], config=_threads(jobs_[i].config, threads)), False)
+                       for i in todo}
+            for i, fut in futures.items():
+                results[i] = fut.result()
+                _store(jobs_[i], results[i], folder)
+    else:
+        for i in todo:
+            results[i] = _run(jobs_[i], progress)
+            _store(jobs_[i], results[i], folder)
+    return [r for r in results if r is not None]
+
+
+def _threads(config: TrainConfig, threads: int) -> TrainConfig:
+    return config if config.num_threads is not None else replace(config, num_threads=threads)
+
+
+def train_networks(
+    inputs: Mapping[str, Sequence[Array]],
+    targets: Mapping[str, Sequence[Array]],
+    config: TrainConfig,
+    seeds: Sequence[int],
+    *,
+    masks: Sequence[NDArray[np.bool_]] | None = None,
+    tag: str = "danae",
+    metadata: Mapping[str, Any] | None = None,
+    cache: str | os.PathLike[str] | None = None,
+    jobs: int = 1,
+    progress: bool = False,
+) -> dict[tuple[str, int], TrainResult]:
+    """One network per head and seed: DANAE's training, for every caller.
+
+    Parameters
+    ----------
+    inputs, targets : ``{head: [array per training recording]}``, the same heads in both;
+        arrays (N,) or (N, C) in the units of the signal (rad for angles).
+    config : training settings; its ``seed`` is replaced by each of ``seeds``.
+    seeds : training seeds (distinct).
+    masks : per training recording, the target samples allowed in the loss (shared by the heads).
+    tag : file-name prefix in the cache (``<tag>-<head>``).
+    metadata : stored with each cached network (plus ``head`` and ``seed``).
+    cache, jobs, progress : see :func:`run_jobs`.
+
+    Returns
+    -------
+    dict
+        ``{(head, seed): TrainResult}``.
+    """
+    if set(inputs) != set(targets):
+        raise ValueError(f"inputs and targets must have the same heads, got {sorted(inputs)} and {sorted(targets)}")
+    seeds = [int(s) for s in seeds]
+    if not seeds or len(set(seeds)) != len(seeds):
+        raise ValueError(f"seeds must be distinct and non-empty, got {seeds}")
+    m = None if masks is None else tuple(np.ascontiguousarray(x, dtype=bool) for x in masks)
+    keys, work = [], []
+    for head in inputs:
+        xs = tuple(np.ascontiguousarray(a) for a in inputs[head])
+        ys = tuple(np.ascontiguousarray(a) for a in targets[head])
+        for seed in seeds:
+            keys.append((head, seed))
+            work.append(NetworkJob(xs, ys, m, replace(config, seed=seed), f"{tag}-{head}",
+                                   {**(metadata or {}), "head": head, "seed": seed}))
+    return dict(zip(keys, run_jobs(work, cache=cache, jobs=jobs, progress=progress)))

@@ -1,0 +1,128 @@
+"""danae_lite.networks: the one training path (per head and seed), its cache and its worker processes."""
+import pathlib
+
+import numpy as np
+import pytest
+import torch
+
+from danae_lite import networks, pipeline, simulate
+from danae_lite.train import TrainConfig, predict
+
+
+@pytest.fixture(scope="module")
+def recs():
+    return [simulate.simulate("handheld", duration=12.3, seed=s) for s in range(3)]
+
+
+@pytest.fixture(scope="module")
+def data(recs):
+    est = pipeline.filter_all(recs)
+    xs = {a: [est[r.name][:, k] for r in recs[1:]] for k, a in enumerate(("roll", "pitch"))}
+    ys = {a: [r.euler[:, k] for r in recs[1:]] for k, a in enumerate(("roll", "pitch"))}
+    return est, xs, ys
+
+
+def _same(a, b):
+    sa, sb = a.model.state_dict(), b.model.state_dict()
+    return sa.keys() == sb.keys() and all(torch.equal(sa[k], sb[k]) for k in sa)
+
+
+def test_one_network_per_head_and_seed_equals_train(recs, data):
+    from danae_lite.train import train
+
+    _, xs, ys = data
+    cfg = TrainConfig(max_steps=5, num_threads=1)
+    nets = networks.train_networks(xs, ys, cfg, seeds=(0, 3))
+    assert set(nets) == {(a, s) for a in ("roll", "pitch") for s in (0, 3)}
+    alone = train(xs["pitch"], ys["pitch"], TrainConfig(max_steps=5, num_threads=1, seed=3), progress=False)
+    assert _same(nets[("pitch", 3)], alone)
+    assert not _same(nets[("pitch", 0)], nets[("pitch", 3)])
+
+
+def test_bad_arguments_are_named(data):
+    _, xs, ys = data
+    with pytest.raises(ValueError, match="same heads"):
+        networks.train_networks(xs, {"roll": ys["roll"]}, TrainConfig(max_steps=1), seeds=(0,))
+    with pytest.raises(ValueError, match="distinct"):
+        networks.train_networks(xs, ys, TrainConfig(max_steps=1), seeds=(1, 1))
+
+
+def test_cache_reuses_the_network(recs, data, tmp_path):
+    est, xs, ys = data
+    cfg = TrainConfig(max_steps=5, num_threads=1)
+    first = networks.train_networks({"pitch": xs["pitch"]}, {"pitch": ys["pitch"]}, cfg, (0,), cache=tmp_path)
+    assert len(list(tmp_path.glob("danae-pitch-seed0-*.pt"))) == 1
+    again = networks.train_networks({"pitch": xs["pitch"]}, {"pitch": ys["pitch"]}, cfg, (0,), cache=tmp_path)
+    a, b = first[("pitch", 0)], again[("pitch", 0)]
+    assert b.steps == a.steps and b.best_step == a.best_step and b.history.equals(a.history)
+    x = est[recs[0].name][:, 1]
+    np.testing.assert_array_equal(predict(b, x), predict(a, x))
+    # another seed or other data is another entry
+    networks.train_networks({"pitch": xs["pitch"]}, {"pitch": ys["pitch"]}, cfg, (1,), cache=tmp_path)
+    networks.train_networks({"pitch": xs["pitch"][:1]}, {"pitch": ys["pitch"][:1]}, cfg, (0,), cache=tmp_path)
+    assert len(list(tmp_path.glob("*.pt"))) == 3
+
+
+def test_no_cache_unless_one_is_passed(data, tmp_path, monkeypatch):
+    # the environment is read by the entry points only: a plain call never touches a disk cache
+    monkeypatch.setenv("DANAE_CACHE", str(tmp_path))
+    _, xs, ys = data
+    networks.train_networks({"roll": xs["roll"]}, {"roll": ys["roll"]}, TrainConfig(max_steps=2, num_threads=1), (0,))
+    assert not list(tmp_path.iterdir())
+
+
+def test_cached_network_is_found_under_another_tag(data, tmp_path):
+    _, xs, ys = data
+    cfg = TrainConfig(max_steps=5, num_threads=1)
+    one = {"roll": xs["roll"]}, {"roll": ys["roll"]}
+    first = networks.train_networks(*one, cfg, (0,), tag="chapter-a", cache=tmp_path)
+    again = networks.train_networks(*one, cfg, (0,), tag="chapter-b", cache=tmp_path)
+    assert [p.name.split("-seed")[0] for p in tmp_path.glob("*.pt")] == ["chapter-a-roll"]  # not trained twice
+    assert _same(first[("roll", 0)], again[("roll", 0)])
+
+
+def _job(xs, ys, cfg):
+    return networks.NetworkJob(tuple(xs), tuple(ys), None, cfg, "t", {})
+
+
+@pytest.mark.parametrize("module", ["model", "train", "windows"])
+def test_cache_key_covers_the_code_that_makes_the_network(recs, tmp_path, monkeypatch, module):
+    import importlib
+
+    mod = importlib.import_module(f"danae_lite.{module}")
+    job = _job([recs[0].euler[:, 0]], [recs[1].euler[:, 0]], TrainConfig(max_steps=5))
+    before = networks.cache_key(job)
+    edited = tmp_path / f"{module}.py"
+    edited.write_bytes(pathlib.Path(mod.__file__).read_bytes() + b"\n# an edit\n")
+    monkeypatch.setattr(mod, "__file__", str(edited))
+    assert networks.cache_key(job) != before
+    monkeypatch.undo()
+    assert networks.cache_key(job) == before
+    # the thread count and the device only change rounding: same network, same key
+    other = _job([recs[0].euler[:, 0]], [recs[1].euler[:, 0]], TrainConfig(max_steps=5, num_threads=3, device="cpu"))
+    assert networks.cache_key(other) == before
+
+
+def test_cache_key_covers_the_seeding_but_not_the_rest_of_config(recs, monkeypatch):
+    from danae_lite import config
+
+    job = _job([recs[0].euler[:, 0]], [recs[1].euler[:, 0]], TrainConfig(max_steps=5))
+    before = networks.cache_key(job)
+    monkeypatch.setattr(config, "seeding_source", lambda: "def seed_everything(seed): pass\n")
+    assert networks.cache_key(job) != before
+    monkeypatch.undo()
+    masked = networks.NetworkJob(job.inputs, job.targets, (np.ones(len(recs[0]), bool),), job.config, "t", {})
+    assert networks.cache_key(masked) != before
+
+
+def test_worker_processes_give_the_same_networks(data, tmp_path):
+    # jobs changes the wall time, not the networks (up to float rounding of other thread counts)
+    _, xs, ys = data
+    cfg = TrainConfig(max_steps=8, num_threads=1)
+    serial = networks.train_networks(xs, ys, cfg, (0, 1))
+    parallel = networks.train_networks(xs, ys, cfg, (0, 1), jobs=2, cache=tmp_path)
+    assert list(parallel) == list(serial)
+    for key in serial:
+        for k, v in serial[key].model.state_dict().items():
+            torch.testing.assert_close(parallel[key].model.state_dict()[k], v, rtol=1e-5, atol=1e-6)
+    assert len(list(tmp_path.glob("*.pt"))) == 4  # stored by the parent
