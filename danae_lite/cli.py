@@ -184,6 +184,13 @@ def build_parser() -> argparse.ArgumentParser:
     _add_common(lb, "leaderboard")
     lb.add_argument("--methods", metavar="NAME", nargs="+", default=None, choices=_method_names(),
                     help="methods to run (default: all): " + " ".join(_method_names()))
+    lb.add_argument("--folds", action="store_true",
+                    help="cross-validate instead of one split: oxiod -> leave one recording out within each "
+                         "motion found (handheld, trolley, multi users) and handheld -> the other motions; broad -> "
+                         "undisturbed -> disturbed trials, grouped by disturbance. Every method is refitted per "
+                         "split; writes folds.csv (one row per held-out recording), folds_summary.csv (mean and std "
+                         "over recordings), folds_params.csv, folds.json (and folds_broad.csv). Not with "
+                         "--train/--test or ucs")
     return parser
 
 
@@ -547,6 +554,8 @@ def leaderboard(args: argparse.Namespace) -> int:
 
     from .leaderboard import run_leaderboard
 
+    if args.folds:
+        return folds(args)
     settings, out_dir, exp, config = _prepare(args)
     fast, seeds, device = settings.fast, list(settings.seeds), settings.device
     methods = args.methods or _method_names()
@@ -572,6 +581,53 @@ def leaderboard(args: argparse.Namespace) -> int:
             print(means.to_string(na_rep="-"))
     print(f"\nalignment: {board.alignment.summary()}")
     print(f"time: {time.perf_counter() - t0:.1f} s; " + ", ".join(f"{k} {v:.1f} s" for k, v in board.seconds.items()))
+    print("wrote " + ", ".join(str(p) for p in written.values()))
+    return 0
+
+
+def folds(args: argparse.Namespace) -> int:
+    """``leaderboard --folds``: :func:`danae_lite.crossval.run_splits` on the experiment's protocol."""
+    import time
+
+    import pandas as pd
+
+    from . import crossval, datasets
+
+    if args.experiment == "ucs":
+        raise UsageError("--folds: ucs is one recording, there is nothing to hold out; use oxiod or broad")
+    if args.train is not None or args.test is not None:
+        raise UsageError("--folds chooses the training and test recordings itself; leave out --train/--test")
+    settings, out_dir, _, config = _prepare(args)
+    methods = args.methods or _method_names()
+    if args.experiment == "oxiod":
+        motions = datasets.load_motions(args.data_dir or settings.data_dir, fast=settings.fast, verbose=False)
+        recs = motions.recordings
+        splits = [s for m, r in recs.items() if len(r) > 1 for s in crossval.leave_one_out(r, m)]
+        others = {m: r for m, r in recs.items() if m != "handheld"}
+        if others:
+            splits.append(crossval.transfer(recs["handheld"], others, "handheld"))
+        note, data, aligned = motions.note, motions.data, False
+    else:
+        exp = load_data(args, settings.fast)
+        splits, note, data, aligned = [crossval.broad_transfer(exp.train, exp.test)], exp.note, exp.data, True
+    print(note)
+    print(f"folds {args.experiment} | data: {data} | mode: {'fast' if settings.fast else 'full'} | {len(splits)} "
+          f"splits | methods {' '.join(methods)} | seeds {' '.join(map(str, settings.seeds))} | jobs {settings.jobs}",
+          flush=True)
+    t0 = time.perf_counter()
+    cv = crossval.run_splits(splits, name=args.experiment, data=data, aligned=aligned, methods=methods,
+                             seeds=settings.seeds, train_config=config, cache=settings.cache, jobs=settings.jobs,
+                             progress=sys.stdout.isatty())
+    written = cv.write(out_dir)
+    with pd.option_context("display.float_format", "{:.4f}".format, "display.width", 160):
+        for protocol in dict.fromkeys(cv.rows.protocol):
+            print(f"\nRMSE [rad] on clean samples, {protocol}: mean and std over held-out recordings")
+            print(cv.summary("clean", protocol, by_group=True).to_string(na_rep="-"))
+    if not cv.trials.empty:
+        with pd.option_context("display.float_format", "{:.2f}".format, "display.width", 160):
+            print("\nBROAD metric [deg], mean and std over the held-out trials:")
+            print(cv.trial_summary().to_string(na_rep="-"))
+    print(f"time: {time.perf_counter() - t0:.1f} s")
     print("wrote " + ", ".join(str(p) for p in written.values()))
     return 0
 

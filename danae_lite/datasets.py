@@ -54,6 +54,13 @@ BROAD_TRAIN_GROUP = "undisturbed"
 BROAD_TEST_GROUP = "disturbed"
 """BROAD trials used for testing."""
 NAMES = ("oxiod", "ucs", "broad")
+OXIOD_MOTIONS: dict[str, tuple[str, str, tuple[int, ...]]] = {
+    "handheld": ("handheld", "data1", (2, 3, 4, 7)),
+    "trolley": ("trolley", "data2", (2, 3, 4, 5)),
+    "multi users": ("multi users", "user2", (5, 6)),
+}
+"""OxIOD motions used for cross-validation: motion -> (setting folder, data folder, K of imuK).
+Handheld is required; a motion whose folder is absent is left out."""
 
 
 @dataclass
@@ -218,3 +225,62 @@ def _simulated_ucs(base: Path | None, fast: bool, seed: int) -> Experiment:
     note = (f"No real UCS data found {_where(base)}: the underwater simulator stands in "
             f"({rec.duration:g} s, first {TRAIN_FRACTION:.0%} train, last {1 - TRAIN_FRACTION:.0%} test).")
     return Experiment("ucs", "simulated", [train], [test], note)
+
+
+@dataclass
+class Motions:
+    """OxIOD recordings grouped by motion, for cross-validation (:mod:`danae_lite.crossval`)."""
+
+    data: str
+    """``"real"`` or ``"simulated"``."""
+    recordings: dict[str, list[Recording]]
+    """motion -> its recordings (names unique across motions, e.g. ``"trolley/data2/imu2"``)."""
+    note: str
+
+
+def load_motions(data_dir: str | os.PathLike[str] | None = None, *, fast: bool | None = None, seed: int = 0,
+                 verbose: bool = True) -> Motions:
+    """The OxIOD motions of :data:`OXIOD_MOTIONS` found under ``<data dir>/oxiod`` (fast mode: the
+    first :data:`FAST_SAMPLES` samples of each), or simulated stand-ins when there is no
+    ``oxiod/`` folder: the handheld simulator with other seeds for each motion (seeds
+    ``seed + 10 m + i``), so that the protocol runs, though the simulator has one motion only.
+
+    A motion folder that exists but lacks one of its files raises
+    :class:`~danae_lite.recording.DataError` naming the file.
+    """
+    fast = fast_mode(fast)
+    base = resolve_data_dir(data_dir)
+    root = oxiod_root(base) if base is not None else None
+    out: dict[str, list[Recording]] = {}
+    if root is None:
+        from .simulate import simulate
+
+        duration = FAST_DURATION["handheld"] if fast else None
+        for m, (motion, (_, _, ks)) in enumerate(OXIOD_MOTIONS.items()):
+            out[motion] = [simulate("handheld", duration=duration, seed=seed + 10 * m + i,
+                                    name=f"sim-{motion.replace(' ', '-')}-{i}") for i in range(len(ks))]
+        note = (f"No real OxIOD data found {_where(base)}: the handheld simulator stands in for every motion "
+                "(other seeds per motion; the simulator has a single motion).")
+        result = Motions("simulated", out, note)
+    else:
+        for motion, (setting, folder, ks) in OXIOD_MOTIONS.items():
+            syn = root / setting / folder / "syn"
+            if not (root / setting).is_dir():
+                if motion == "handheld":
+                    raise DataError(f"{root} lacks {root / setting}; the handheld recordings are needed")
+                continue
+            needed = [syn / f"{p}{k}.csv" for k in ks for p in ("imu", "vi")]
+            missing = [str(x) for x in needed if not x.is_file()]
+            if missing:
+                raise DataError(f"{root / setting} exists but lacks {', '.join(missing)}; expected the original "
+                                f"OxIOD layout <oxiod>/{setting}/{folder}/syn/imuK.csv + viK.csv")
+            recs = [oxiod.load_recording(syn / f"imu{k}.csv") for k in ks]
+            out[motion] = [r.slice(0, FAST_SAMPLES, name=r.name) if fast and len(r) > FAST_SAMPLES else r
+                           for r in recs]
+        cut = f" (fast mode: first {FAST_SAMPLES} samples each)" if fast else ""
+        note = ("Real OxIOD from " + str(root) + ": " + "; ".join(f"{m} {len(v)} recordings" for m, v in out.items())
+                + cut + ".")
+        result = Motions("real", out, note)
+    if verbose:
+        print(result.note)
+    return result

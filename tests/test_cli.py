@@ -201,3 +201,28 @@ def test_help_subprocess() -> None:
                  "--fast", "--device", "--threads", "--save-models", "--out", "DANAE_DATA", "DANAE_FAST",
                  "80%", "imu3, imu4, imu7", "Default"):
         assert flag in text, flag
+
+
+def test_leaderboard_folds_simulated(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """--folds: leave one recording out within every motion plus handheld -> the other motions."""
+    out = tmp_path / "folds"
+    code, stdout, err = run(["leaderboard", "--folds", *TINY, "--methods", "constant", "paper_kf", "danae",
+                             "--out", str(out)], capsys)
+    assert code == 0, err
+    rows = pd.read_csv(out / "folds.csv")
+    motions = {m: len(v[2]) for m, v in datasets.OXIOD_MOTIONS.items()}
+    in_motion = rows[rows.protocol == "in-motion"]
+    assert in_motion.split.nunique() == sum(motions.values())  # one split per held-out recording
+    transfer = rows[rows.protocol == "transfer"]
+    assert set(transfer.group) == {"trolley", "multi users"}
+    assert transfer.test.nunique() == motions["trolley"] + motions["multi users"]
+    summary = pd.read_csv(out / "folds_summary.csv")
+    assert set(summary.method) == {"constant", "paper_kf", "danae"}
+    assert "mean and std over held-out recordings" in stdout
+
+
+def test_folds_usage_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    code, _, err = run(["leaderboard", "--folds", "--experiment", "ucs", *TINY, "--out", str(tmp_path)], capsys)
+    assert code == 2 and "nothing to hold out" in err
+    code, _, err = run(["leaderboard", "--folds", *TINY, "--test", str(tmp_path), "--out", str(tmp_path)], capsys)
+    assert code == 2 and "--train/--test" in err

@@ -1,0 +1,93 @@
+"""danae_lite.crossval: splits never train on what they test; rows, spreads and paired differences
+are the plain computations on the per-recording predictions."""
+import numpy as np
+import pandas as pd
+import pytest
+
+from danae_lite import crossval, datasets, metrics, simulate
+from danae_lite.leaderboard import run_leaderboard
+from danae_lite.train import TrainConfig
+
+
+@pytest.fixture(scope="module")
+def motions():
+    recs = {"handheld": [simulate.simulate("handheld", duration=8.0, seed=s, name=f"h{s}") for s in range(3)],
+            "trolley": [simulate.simulate("handheld", duration=8.0, seed=10 + s, name=f"t{s}") for s in range(2)]}
+    return recs
+
+
+@pytest.fixture(scope="module")
+def cv(motions):
+    splits = crossval.leave_one_out(motions["handheld"], "handheld")
+    splits.append(crossval.transfer(motions["handheld"], {"trolley": motions["trolley"]}, "handheld"))
+    return crossval.run_splits(splits, name="oxiod", data="simulated", methods=("constant", "paper_kf", "danae"),
+                               seeds=(0, 1), train_config=TrainConfig(max_steps=3, num_threads=1), progress=False)
+
+
+def test_leave_one_out_holds_each_recording_out_once(motions):
+    splits = crossval.leave_one_out(motions["handheld"], "handheld")
+    assert [s.test[0].name for s in splits] == ["h0", "h1", "h2"]
+    for s in splits:
+        assert {r.name for r in s.train} == {"h0", "h1", "h2"} - {s.test[0].name}
+    with pytest.raises(ValueError, match="at least 2"):
+        crossval.leave_one_out(motions["handheld"][:1], "handheld")
+    with pytest.raises(ValueError, match="both trained on and tested"):
+        crossval.Split("bad", "in-motion", tuple(motions["handheld"]), tuple(motions["handheld"][:1]), {"h0": "x"})
+
+
+def test_rows_cover_every_split_recording_method_and_angle(cv):
+    r = cv.rows
+    assert len(r) == (3 + 2) * 3 * 2 * 3  # held-out recordings x methods x subsets x angles
+    assert set(r.protocol) == {"in-motion", "transfer"}
+    assert set(r[r.protocol == "transfer"].group) == {"trolley"}
+    assert r.seeds.max() == 2 and r[r.method == "constant"].seeds.max() == 1
+    assert dict(zip(r.method, r.causal)) == {"constant": True, "paper_kf": True, "danae": False}
+
+
+def test_a_row_is_the_leaderboard_of_its_split_on_that_recording(cv, motions):
+    # the in-motion split holding out h1, recomputed with the leaderboard on that single split
+    exp = datasets.Experiment("oxiod", "simulated", [motions["handheld"][0], motions["handheld"][2]],
+                              [motions["handheld"][1]], "check")
+    board = run_leaderboard(exp, methods=("paper_kf", "danae"), seeds=(0, 1),
+                            train_config=TrainConfig(max_steps=3, num_threads=1), progress=False)
+    for method in ("paper_kf", "danae"):
+        ours = cv.rows[(cv.rows.test == "h1") & (cv.rows.method == method) & (cv.rows.samples == "all")]
+        ref = board.table[(board.table.method == method) & (board.table.samples == "all")]
+        for a in ("roll", "pitch", "yaw"):
+            assert ours[ours.angle == a].rmse.iloc[0] == pytest.approx(ref[ref.angle == a].rmse.iloc[0], rel=1e-9)
+
+
+def test_summary_is_mean_and_sample_std_over_recordings(cv):
+    s = cv.summary("clean", "in-motion")
+    per = cv.per_recording("pitch", "clean", "in-motion")
+    assert s.loc["paper_kf", ("pitch", "mean")] == pytest.approx(per["paper_kf"].mean())
+    assert s.loc["paper_kf", ("pitch", "std")] == pytest.approx(np.std(per["paper_kf"], ddof=1))
+    assert s.loc["danae", "n"].item() == 3 and not s.loc["danae", "causal"].item()
+
+
+def test_paired_differences(cv):
+    p = cv.paired("danae", "paper_kf", "roll", "clean", "in-motion")
+    assert len(p) == 3
+    np.testing.assert_allclose(p["diff"], p["danae"] - p["paper_kf"])
+    np.testing.assert_allclose(p["reduction_pct"], 100 * (1 - p["danae"] / p["paper_kf"]))
+    assert p.attrs["wins"] == int((p["danae"] < p["paper_kf"]).sum())
+    assert p.attrs["std_diff"] == pytest.approx(np.std(p["diff"], ddof=1))
+    with pytest.raises(KeyError, match="vqf"):
+        cv.paired("vqf", "paper_kf", "roll")
+
+
+def test_write(cv, tmp_path):
+    paths = cv.write(tmp_path)
+    rows = pd.read_csv(paths["rows"])
+    assert len(rows) == len(cv.rows)
+    summary = pd.read_csv(paths["summary"])
+    assert {"protocol", "group", "method", "roll_mean", "roll_std", "n"} <= set(summary.columns)
+
+
+def test_spread_rule():
+    assert metrics.spread([1.0, 3.0]) == (2.0, pytest.approx(np.sqrt(2.0)))
+    m, s = metrics.spread([0.5])
+    assert m == 0.5 and np.isnan(s)
+    with pytest.raises(ValueError, match="NaN"):
+        metrics.spread([1.0, np.nan])
+    assert metrics.reduction_pct(0.5, 1.0) == 50.0 and metrics.reduction_pct(1.5, 1.0) == -50.0
