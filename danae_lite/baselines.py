@@ -507,7 +507,8 @@ class Danae(_OnPaperKF):
             for a in self.angles:
                 k = ANGLES.index(a)
                 e[:, k] = predict(self.results[(a, int(seed))], x[:, k])[:, 0]
-            e[:, 2] = wrap(e[:, 2])
+            if self.targets == "continuous":  # raw targets: the network's output as it is (the paper's)
+                e[:, 2] = wrap(e[:, 2])
             out.append(e)
         return out
 

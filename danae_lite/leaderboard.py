@@ -272,9 +272,10 @@ def run_leaderboard(
     progress : show a progress bar over the methods (and DANAE's training bars).
     extra : further unfitted :class:`~danae_lite.baselines.Method` objects (e.g. the variants
         of :mod:`danae_lite.variants`), fitted and evaluated after ``methods`` under their ``name``.
-    align : estimate the frame alignment on the training recordings (default: unless
-        ``exp.aligned``); False keeps the sensors' frames and the filter's heading as they are
-        (the paper's experiment, :func:`danae_lite.pipeline.reproduce`).
+    align : None (default): estimate the frame alignment on the training recordings, or take
+        the identity when ``exp.aligned``, and give every method the rotated specific force;
+        False: the recordings exactly as loaded, sensor signals and frames untouched (the
+        paper's experiment, :func:`danae_lite.pipeline.reproduce`).
     jobs : worker processes for the networks of each method (:mod:`danae_lite.networks`).
     """
     if progress:  # the notebook widget when available
@@ -292,12 +293,13 @@ def run_leaderboard(
     if dup:
         raise ValueError(f"recording names must be unique across training and test, repeated: {', '.join(dup)}")
     clean = {r.name: clean_mask(r) for r in recs}
-    if align is None:
-        align = not exp.aligned
-    alignment = (estimate_alignment(exp.train, [clean[r.name] for r in exp.train]) if align
-                 else FrameAlignment.identity())
-    aligned_train = [alignment.apply(r) for r in exp.train]
-    aligned_test = [alignment.apply(r) for r in exp.test]
+    alignment = (FrameAlignment.identity() if exp.aligned or align is False
+                 else estimate_alignment(exp.train, [clean[r.name] for r in exp.train]))
+    if align is False:  # the recordings exactly as loaded (the paper's experiment)
+        aligned_train, aligned_test = list(exp.train), list(exp.test)
+    else:
+        aligned_train = [alignment.apply(r) for r in exp.train]
+        aligned_test = [alignment.apply(r) for r in exp.test]
     ctx = Context(train=aligned_train, clean={r.name: clean[r.name] for r in exp.train}, alignment=alignment,
                   seeds=tuple(int(s) for s in seeds), train_config=train_config or TrainConfig(), cache=cache,
                   jobs=jobs, progress=progress)

@@ -200,6 +200,26 @@ class Reproduction:
     """Training settings shared by every network (the seed is replaced per network)."""
     kf_config: kalman.KFConfig
     """Filter settings."""
+    leaderboard: Any = None
+    """The engine's :class:`~danae_lite.leaderboard.Leaderboard` behind these numbers (its
+    ``table`` holds the metrics on all and on clean samples, ``clean`` the masks)."""
+
+    def metrics_on(self, samples: str = "all") -> tuple[dict[str, MetricDict], dict[str, MetricDict]]:
+        """``(kf, danae)`` as :attr:`kf` / :attr:`danae`, on ``"all"`` test samples (those
+        attributes) or on the ``"clean"`` ones (ground-truth glitches of
+        :mod:`danae_lite.groundtruth` left out)."""
+        if samples == "all" or self.leaderboard is None:
+            if samples != "all":
+                raise ValueError("this reproduction has no clean-sample metrics (no leaderboard attached)")
+            return self.kf, self.danae
+        if samples != "clean":
+            raise ValueError(f"samples={samples!r}: choose 'all' or 'clean'")
+        rows = self.leaderboard.table[self.leaderboard.table.samples == "clean"].set_index(["method", "angle"])
+        out = {m: {a: {k: float(rows.loc[(m, a), k]) for k in metrics.METRICS} for a in self.angles}
+               for m in ("paper_kf", "danae")}
+        for a in self.angles:
+            out["danae"][a]["rmse_std"] = float(rows.loc[("danae", a), "rmse_std"])
+        return out["paper_kf"], out["danae"]
 
     @property
     def data(self) -> str:
@@ -243,8 +263,9 @@ class Reproduction:
                              **{f"paper_{m}": ref.get(m, np.nan) for m in metrics.METRICS}})
         return pd.DataFrame(rows, columns=list(CSV_COLUMNS))
 
-    def comparison(self) -> pd.DataFrame:
-        """Our numbers in the layout of the paper's Table 1/2, next to the paper's [rad].
+    def comparison(self, samples: str = "all") -> pd.DataFrame:
+        """Our numbers in the layout of the paper's Table 1/2, next to the paper's [rad], on
+        ``"all"`` test samples (as the paper) or on the ``"clean"`` ones (:meth:`metrics_on`).
 
         Rows ``(method, metric)`` with method "KF"/"DANAE" and metric in
         :data:`~danae_lite.metrics.METRICS`; columns ``(angle, source)`` with source "ours"
@@ -252,7 +273,8 @@ class Reproduction:
         one seed; NaN elsewhere) and "paper" (NaN where the paper gives no value).
         """
         blocks = {}
-        for label, method, vals in (("KF", "kf", self.kf), ("DANAE", "danae", self.danae)):
+        kf, danae = self.metrics_on(samples)
+        for label, method, vals in (("KF", "kf", kf), ("DANAE", "danae", danae)):
             ours = pd.DataFrame(vals).loc[list(metrics.METRICS), list(self.angles)]
             table = metrics.compare_with_paper(ours, self.experiment.name, method)
             for angle in self.angles:
@@ -418,7 +440,7 @@ def reproduce(
         danae=block["danae"], paper=paper_values(exp.name, angles),
         seconds={"kf": board.seconds["paper_kf"], "train": board.seconds["danae"],
                  "total": time.perf_counter() - t_start},
-        config=config, kf_config=kf.config)
+        config=config, kf_config=kf.config, leaderboard=board)
 
 
 def _study(exp: Experiment, estimates: dict[str, NDArray[np.float64]], danae: Any, board: Any) -> SeedStudy:
