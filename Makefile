@@ -4,7 +4,8 @@
 #   make test    -> unit tests plus every notebook under nbmake (fast mode), same venv; one torch
 #                   thread per pytest worker (OMP_NUM_THREADS=1): $(JOBS) workers share the cores
 #   make execute -> re-executes every chapter in place, in full mode on real data, storing the outputs
-#                   that `make book` renders (python -m danae_lite.book; ARGS="--only 03_danae" for one).
+#                   that `make book` renders (python -m danae_lite.book; ARGS="--only 03_danae" for one),
+#                   with DANAE_JOBS (default: one worker process per core) parallel trainings and folds.
 #                   It needs DANAE_DATA and refuses to run without it (or in fast mode) unless
 #                   ARGS="--out DIR" writes the executed copies elsewhere.
 # Real data: export DANAE_DATA=/path/to/data (holding oxiod/ and/or ucs/); otherwise the simulator stands in.
@@ -14,6 +15,8 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 JOBS   ?= 2
+# worker processes for the chapters' independent trainings and folds (danae_lite.config.RunSettings)
+EXEC_JOBS ?= $(shell nproc 2>/dev/null || echo 1)
 ARGS   ?=
 # trained networks are shared between chapters through this cache (see danae_lite.config)
 export DANAE_CACHE ?= $(CURDIR)/_build/danae_cache
@@ -34,7 +37,7 @@ book: $(STAMP)
 	@echo "Book written to _build/html/index.html"
 
 execute: $(STAMP)
-	$(BIN)/python -m danae_lite.book $(ARGS)
+	DANAE_JOBS=$${DANAE_JOBS:-$(EXEC_JOBS)} $(BIN)/python -m danae_lite.book $(ARGS)
 
 test: $(STAMP)
 	DANAE_FAST=$${DANAE_FAST:-1} OMP_NUM_THREADS=$${OMP_NUM_THREADS:-1} $(BIN)/python -m pytest -n $(JOBS) tests notebooks --nbmake --nbmake-timeout=1200

@@ -26,8 +26,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .config import (_FALSE, _TRUE, CACHE_ENV, DATA_ENV, DEFAULT_SEED, FAST_ENV, RunSettings, data_dir,
-                     fast_mode, seed_everything)
+from .config import (_FALSE, _TRUE, CACHE_ENV, DATA_ENV, DEFAULT_SEED, FAST_ENV, JOBS_ENV, RunSettings,
+                     data_dir, fast_mode, jobs, seed_everything)
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -438,6 +438,9 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--notebooks-dir", metavar="DIR", default=None,
                         help="folder of the chapters; default notebooks/ in the repository root "
                              "(the folder holding _toc.yml, from the current directory upward)")
+    parser.add_argument("--jobs", metavar="N", type=int, default=None,
+                        help=f"worker processes for the chapters' independent trainings and folds; default "
+                             f"${JOBS_ENV}, else 1 (make execute: one per core). The outputs do not depend on it")
     parser.add_argument("--timeout", metavar="S", type=float, default=3600.0,
                         help="limit for each cell in seconds (default 3600)")
     args = parser.parse_args(argv)
@@ -457,6 +460,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             chapters = [c for c in chapters if c in wanted]
         data = data_dir(args.data_dir)
         fast = fast_mode(args.fast)
+        os.environ[JOBS_ENV] = str(jobs(args.jobs))  # read by each chapter's setup() in its kernel
         cache = args.cache or os.environ.get(CACHE_ENV, "").strip() or root / "_build" / "danae_cache"
         execute_book([folder / f"{c}.ipynb" for c in chapters], data_dir=data, cache_dir=cache, fast=fast,
                      out_dir=args.out, timeout=args.timeout if args.timeout > 0 else None)

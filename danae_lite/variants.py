@@ -140,6 +140,54 @@ class DanaeOn(Method):
         return out
 
 
+def validation_block(n: int, config: TrainConfig) -> slice:
+    """The tail of an ``n``-sample training recording that training held out for validation
+    (``max(window, round(val_fraction n))`` samples, as :func:`danae_lite.train.train` splits)."""
+    n_val = 0 if config.val_fraction == 0 else max(config.window, int(round(config.val_fraction * n)))
+    return slice(n - n_val, n)
+
+
+class Selected(Method):
+    """The learned variant chosen on validation data: of ``candidates`` (unfitted
+    :class:`DanaeOn` objects), the one with the lowest total rotation error RMSE
+    (:func:`danae_lite.baselines.total_error_rmse`) on the clean validation blocks of the
+    training recordings (:func:`validation_block`: samples none of the networks trained on),
+    scored with each candidate's first-seed network. Nothing of the test recordings takes part; ``params`` records every candidate's score and
+    the choice.
+    """
+
+    def __init__(self, candidates: list[DanaeOn], name: str = "danae-selected") -> None:
+        super().__init__()
+        if not candidates:
+            raise ValueError("Selected needs at least one candidate")
+        self.candidates, self.name = candidates, name
+        self.causal = all(c.causal for c in candidates)
+        self.description = "the DANAE variant with the lowest validation error among " + ", ".join(
+            c.name for c in candidates)
+
+    def fit(self, ctx: Context) -> "Selected":
+        from .baselines import total_error_rmse
+
+        self.ctx = ctx
+        scores = {}
+        for c in self.candidates:
+            c.fit(ctx)
+            est, clean = {}, {}
+            for r in ctx.train:
+                block = validation_block(len(r), c.config(ctx.seeds[0]))
+                mask = np.zeros(len(r), dtype=bool)
+                mask[block] = ctx.clean[r.name][block]
+                est[r.name] = c.predict(r)[0]  # the first seed's network
+                clean[r.name] = mask
+            scores[c.name] = total_error_rmse(est, ctx.train, clean)
+        self.chosen = min(self.candidates, key=lambda c: scores[c.name])
+        self.params = {"chosen": self.chosen.name, "validation_total_rmse_rad": scores}
+        return self
+
+    def predict(self, rec: Recording) -> list[Array]:
+        return self.chosen.predict(rec)
+
+
 # ---------------------------------------------------------------------------------------
 # the experiments of chapter 6, defined once for the book and the scripts
 # ---------------------------------------------------------------------------------------

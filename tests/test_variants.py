@@ -74,3 +74,28 @@ def test_duplicate_names_and_danae_source_are_rejected(board):
                         progress=False)
     with pytest.raises(ValueError, match="inputs="):
         DanaeOn("vqf", inputs="everything")
+
+
+def test_selected_variant_is_chosen_on_validation_blocks_only():
+    from danae_lite.baselines import total_error_rmse
+    from danae_lite.variants import Selected, validation_block
+
+    recs = [simulate("handheld", duration=12.0, seed=s, name=f"sel-{s}") for s in range(3)]
+    exp = Experiment("oxiod", "simulated", recs[1:], recs[:1], "selection")
+    cfg = TrainConfig(max_steps=5, num_threads=1)
+    sel = Selected([DanaeOn("paper_kf", name="a"), DanaeOn("paper_kf", name="b", window=40)])
+    board = run_leaderboard(exp, methods=(), extra=[sel], seeds=(0,), train_config=cfg, progress=False)
+    scores = sel.params["validation_total_rmse_rad"]
+    assert set(scores) == {"a", "b"} and sel.params["chosen"] == min(scores, key=scores.get)
+    # the score is the total error on the held-out tail of each training recording, recomputed here
+    cand = {c.name: c for c in sel.candidates}["b"]
+    est, masks = {}, {}
+    for r in sel.ctx.train:
+        m = np.zeros(len(r), bool)
+        m[validation_block(len(r), cand.config(0))] = True
+        est[r.name], masks[r.name] = cand.predict(r)[0], m & board.clean[r.name]
+    assert scores["b"] == pytest.approx(total_error_rmse(est, sel.ctx.train, masks))
+    assert not (set(sel.ctx.clean) & {r.name for r in exp.test})  # no test recording in the fitting context
+    chosen = {c.name: c for c in sel.candidates}[sel.params["chosen"]]
+    np.testing.assert_array_equal(board.predictions["danae-selected"][recs[0].name][0],
+                                  chosen.predict(sel.ctx.alignment.apply(recs[0]))[0])
