@@ -109,7 +109,7 @@ class CrossValidation:
     rows: pd.DataFrame
     """:data:`ROW_COLUMNS`: one row per split, held-out recording, method, subset and angle."""
     trials: pd.DataFrame
-    """:data:`TRIAL_COLUMNS` (BROAD only; empty otherwise)."""
+    """:data:`TRIAL_COLUMNS` (experiment ``"broad"`` only, real or simulated; empty otherwise)."""
     params: pd.DataFrame
     """Parameters each method chose on each split's training recordings (``split``, ``method``, ``params``)."""
     seconds: dict[str, float]
@@ -217,7 +217,10 @@ class CrossValidation:
         return paths
 
 
-def _recording_rows(split: Split, board: Any) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+def _recording_rows(split: Split, board: Any, benchmark: bool) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+    """Per held-out recording: the paper's metrics per subset and angle and, with ``benchmark``
+    (BROAD), the benchmark's figures over ``meta["movement"]`` and ``meta["gt_valid"]`` (every
+    sample when a recording has neither, e.g. a simulated stand-in)."""
     rows, trials = [], []
     for name, per_test in board.predictions.items():
         causal = bool(board.methods[name].causal)
@@ -234,16 +237,18 @@ def _recording_rows(split: Split, board: Any) -> tuple[list[dict[str, Any]], lis
                         row[m] = metrics.spread([s[m] for s in per_seed])[0] if per_seed else np.nan
                     row["rmse_seed_std"] = metrics.spread([s["rmse"] for s in per_seed])[1] if per_seed else np.nan
                     rows.append(row)
-            if "movement" in rec.meta:
+            if benchmark:
+                n = len(rec)
+                movement = np.asarray(rec.meta.get("movement", np.ones(n, dtype=bool)), dtype=bool)
+                valid = np.asarray(rec.meta.get("gt_valid", np.ones(n, dtype=bool)), dtype=bool)
                 figs = []
                 for p in preds:
                     e = np.array(p, dtype=float)
                     no_heading = bool(np.isnan(e[:, 2]).all())
                     if no_heading:
                         e[:, 2] = rec.euler[:, 2]
-                    valid = np.asarray(rec.meta.get("gt_valid", np.ones(len(rec), bool)), dtype=bool)
                     f = broad.benchmark_rmse(euler_to_quat(e), np.where(valid[:, None], rec.quat, np.nan),
-                                             np.asarray(rec.meta["movement"], dtype=bool)).as_dict()
+                                             movement).as_dict()
                     if no_heading:
                         f["total_rmse_deg"] = f["heading_rmse_deg"] = np.nan
                     figs.append(f)
@@ -261,7 +266,7 @@ def _run_one(split: Split, name: str, data: str, aligned: bool, methods: Sequenc
     exp = Experiment(name, data, list(split.train), list(split.test), split.name, aligned=aligned)
     board = run_leaderboard(exp, methods=methods, extra=[copy.deepcopy(m) for m in extra], seeds=seeds,
                             train_config=train_config, cache=cache, progress=False, jobs=jobs)
-    rows, trials = _recording_rows(split, board)
+    rows, trials = _recording_rows(split, board, benchmark=name == "broad")
     params = [{"split": split.name, "method": n, "params": json.dumps(_plain(m.params), sort_keys=True)}
               for n, m in board.methods.items()]
     return rows, trials, params, time.perf_counter() - t0

@@ -91,3 +91,15 @@ def test_spread_rule():
     with pytest.raises(ValueError, match="NaN"):
         metrics.spread([1.0, np.nan])
     assert metrics.reduction_pct(0.5, 1.0) == 50.0 and metrics.reduction_pct(1.5, 1.0) == -50.0
+
+
+def test_broad_split_scores_the_benchmark_metric_on_simulated_stand_ins(motions):
+    split = crossval.broad_transfer(motions["handheld"], motions["trolley"])
+    assert set(split.groups.values()) == {"disturbed"}  # simulated: no BROAD groups
+    cv = crossval.run_splits([split], name="broad", data="simulated", aligned=True,
+                             methods=("constant", "paper_kf"), progress=False)
+    assert len(cv.trials) == 2 * 2 and set(cv.trials.method) == {"constant", "paper_kf"}
+    s = cv.trial_summary()
+    assert s.loc["paper_kf", "n"] == 2
+    assert s.loc["paper_kf", "total_rmse_deg"] == pytest.approx(
+        cv.trials[cv.trials.method == "paper_kf"].total_rmse_deg.mean())
