@@ -521,4 +521,24 @@ def make_method(name: str) -> Method:
         return simple[name]()
     if name in filters.FILTERS:
         return LibraryFilter(name)
-    raise ValueError(f"unknown method {name!r}; choose from {', '.join(METHODS)}")
+    source = _denoiser_source(name)
+    if source is not None:
+        from .denoiser import DanaeRes  # the recommended denoiser, on a filter named in brackets
+
+        return DanaeRes(source)
+    raise ValueError(f"unknown method {name!r}; choose from {', '.join(METHODS)} or danae-res[<filter>]")
+
+
+def _denoiser_source(name: str) -> str | None:
+    """``"danae-res[vqf]"`` -> ``"vqf"`` when the bracket holds a filter of :data:`METHODS`, else None."""
+    if name.startswith("danae-res[") and name.endswith("]"):
+        source = name[len("danae-res["):-1]
+        if source in METHODS and not source.startswith("danae"):
+            return source
+    return None
+
+
+def is_method_name(name: str) -> bool:
+    """Whether :func:`make_method` knows ``name``: one of :data:`METHODS` or ``danae-res[<filter>]``
+    (the recommended denoiser on that filter's output, :class:`danae_lite.denoiser.DanaeRes`)."""
+    return name in METHODS or _denoiser_source(name) is not None

@@ -182,8 +182,9 @@ def build_parser() -> argparse.ArgumentParser:
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     _add_common(lb, "leaderboard")
-    lb.add_argument("--methods", metavar="NAME", nargs="+", default=None, choices=_method_names(),
-                    help="methods to run (default: all): " + " ".join(_method_names()))
+    lb.add_argument("--methods", metavar="NAME", nargs="+", default=None, type=_method_name,
+                    help="methods to run (default: all): " + " ".join(_method_names())
+                    + "; and danae-res[FILTER], the recommended denoiser on FILTER's output (e.g. danae-res[vqf])")
     lb.add_argument("--folds", action="store_true",
                     help="cross-validate instead of one split: oxiod -> leave one recording out within each "
                          "motion found (handheld, trolley, multi users) and handheld -> the other motions; broad -> "
@@ -192,6 +193,16 @@ def build_parser() -> argparse.ArgumentParser:
                          "over recordings), folds_params.csv, folds.json (and folds_broad.csv). Not with "
                          "--train/--test or ucs")
     return parser
+
+
+def _method_name(name: str) -> str:
+    """``--methods`` value check: a leaderboard method or ``danae-res[<filter>]``."""
+    from .baselines import is_method_name
+
+    if not is_method_name(name):
+        raise argparse.ArgumentTypeError(
+            f"invalid choice: {name!r} (choose from {', '.join(_method_names())} or danae-res[<filter>])")
+    return name
 
 
 def _method_names() -> list[str]:

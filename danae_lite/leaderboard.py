@@ -37,7 +37,7 @@ from numpy.typing import NDArray
 from . import broad, metrics
 from .alignment import FrameAlignment, estimate_alignment
 from .angles import ANGLES, euler_to_quat
-from .baselines import METHODS, Context, Method
+from .baselines import METHODS, Context, Method, is_method_name
 from .datasets import Experiment
 from .groundtruth import clean_mask, glitch_table
 from .train import TrainConfig
@@ -264,7 +264,8 @@ def run_leaderboard(
     Parameters
     ----------
     exp : the recordings (:func:`danae_lite.datasets.load_experiment` or the CLI's selection).
-    methods : names from :data:`danae_lite.baselines.METHODS`.
+    methods : names from :data:`danae_lite.baselines.METHODS`, or ``danae-res[<filter>]``
+        (:class:`danae_lite.denoiser.DanaeRes` on that filter).
     seeds : DANAE training seeds (one network per angle and seed).
     train_config : DANAE settings; default the paper's (:class:`~danae_lite.train.TrainConfig`).
     cache : trained-network cache folder; None (default): no cache. Entry points pass the
@@ -283,9 +284,10 @@ def run_leaderboard(
     else:
         from tqdm import tqdm
 
-    unknown = [m for m in methods if m not in METHODS]
+    unknown = [m for m in methods if not is_method_name(m)]
     if unknown:
-        raise ValueError(f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(METHODS)}")
+        raise ValueError(f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(METHODS)} "
+                         "or danae-res[<filter>]")
     t_total = time.perf_counter()
     recs = [*exp.train, *exp.test]
     seen: set[str] = set()

@@ -1,0 +1,289 @@
+"""The recommended learned denoiser, DANAE-res: a correction learned on a filter's error.
+
+The paper's DANAE rebuilds every angle from a bottleneck, in raw radians: it learns the
+*level* of the training angles as much as their noise, adds error behind a good filter and
+does not travel to another motion (chapter 6). DANAE-res changes what is learned, not the
+networks or the training loop (:func:`danae_lite.networks.train_networks`):
+
+* **Residual target.** The network predicts the filter's error ``truth - filter`` (roll,
+  pitch and the wrapped yaw difference, rad); the output is ``filter + gain * correction``.
+  A zero correction is the filter itself.
+* **Standardised inputs, unscaled-mean targets.** Inputs are standardised per channel and the
+  targets divided by their root mean square, not centred: the network is not handed the
+  training recordings' mean error as a free bias. The statistics come from the clean
+  training samples outside the validation tails and are stored in the network's buffers,
+  so a saved network maps raw features [rad, rad/s] to a correction [rad].
+* **Level augmentation** (``offset_rad``): during training, a slowly varying offset (a sum of
+  three sinusoids of random phase with periods of 20-60 s, each of amplitude
+  ``offset_rad / 3``) is added to every angle-like input channel of a rotation axis (the
+  filter's roll and the accelerometer's roll, and so on; headings are rotated as sin/cos
+  pairs). Inside a window it is nearly constant, so the network cannot read the correction
+  off the absolute angle. The target (an error) does not change.
+* **Inputs.** ``inputs="multi"``: the 11 channels of :data:`danae_lite.variants.MULTI_CHANNELS`
+  (filter angles, accelerometer tilt, magnetic heading, Euler rates); ``"angles"``: the
+  filter's angles only.
+* **Architecture.** ``arch="causal"`` (default, :class:`~danae_lite.model.DanaeCausal`, 64
+  channels, 64-sample windows, loss on positions 30-63): on a causal filter it runs on-line
+  (:class:`DenoiserStream`). ``arch="paper"`` looks ahead.
+* **Validation gate** (``gate=True``): per angle, the gain ``g`` in :data:`GATE_GAINS` with the
+  lowest RMSE on the clean validation tails of the training recordings (samples no network
+  trained on, :func:`danae_lite.variants.validation_block`). ``g = 0`` falls back to the
+  filter. Nothing of the test recordings takes part.
+
+Frames and units: every angle is ZYX Euler (roll, pitch, yaw) [rad] in the ground-truth
+frame of the aligned recordings; yaw differences are wrapped to [-pi, pi).
+"""
+from __future__ import annotations
+
+from dataclasses import replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from .angles import wrap
+from .baselines import Context, Method, make_method
+from .recording import Recording
+from .train import TrainConfig, TrainResult, predict
+from .variants import ANGLE_CHANNELS, MULTI_CHANNELS, multi_input, to_circle, validation_block
+
+Array = NDArray[np.float64]
+
+GATE_GAINS: tuple[float, ...] = (0.0, 0.25, 0.5, 0.75, 1.0)
+"""Gains the validation gate chooses from, per angle (0: the filter, 1: the full correction)."""
+OFFSET_PERIODS_S: tuple[float, float] = (20.0, 60.0)
+"""Range of the periods [s] of the level-augmentation sinusoids."""
+DEFAULT_SETTINGS: dict[str, Any] = {"arch": "causal", "hidden": 64, "window": 64, "loss_start": 30}
+"""Network of the recommended denoiser (the causal variant of chapter 6)."""
+
+# channels of each input set that carry the level of one rotation axis: (roll, pitch) channels
+# are shifted, (sin, cos) pairs rotated by the yaw offset
+_LEVEL_CHANNELS = {
+    "multi": {"roll": (0, 4), "pitch": (1, 5), "yaw": ((2, 3), (6, 7))},
+    "angles": {"roll": (0,), "pitch": (1,), "yaw": ((2, 3),)},
+}
+
+
+def filter_error(est: Array, truth: Array) -> Array:
+    """``truth - est`` per angle [rad], (N, 3); the yaw difference wrapped to [-pi, pi)."""
+    d = np.asarray(truth, dtype=float) - np.asarray(est, dtype=float)
+    d[:, 2] = wrap(d[:, 2])
+    return d
+
+
+def level_offsets(n: int, rate_hz: float, amplitude_rad: float, rng: np.random.Generator) -> Array:
+    """(n, 3) slowly varying offsets [rad] for roll, pitch and yaw: per axis, a sum of three
+    sinusoids with periods drawn from :data:`OFFSET_PERIODS_S`, random phases and amplitude
+    ``amplitude_rad / 3`` each (so ``|offset| <= amplitude_rad``)."""
+    t = np.arange(n) / float(rate_hz)
+    out = np.zeros((n, 3))
+    for k in range(3):
+        for _ in range(3):
+            period = rng.uniform(*OFFSET_PERIODS_S)
+            out[:, k] += amplitude_rad / 3 * np.sin(2 * np.pi * t / period + rng.uniform(0, 2 * np.pi))
+    return out
+
+
+def shift_levels(x: Array, offsets: Array, inputs: str) -> Array:
+    """Features ``x`` (N, C) of input set ``inputs`` with the level ``offsets`` (N, 3) [rad]
+    added to every angle-like channel (sin/cos pairs rotated by the yaw offset)."""
+    x = np.array(x, dtype=float)
+    spec = _LEVEL_CHANNELS[inputs]
+    for k, axis in enumerate(("roll", "pitch")):
+        for c in spec[axis]:
+            x[:, c] += offsets[:, k]
+    c, s = np.cos(offsets[:, 2]), np.sin(offsets[:, 2])
+    for i_sin, i_cos in spec["yaw"]:
+        sn, cs = x[:, i_sin].copy(), x[:, i_cos].copy()
+        x[:, i_sin], x[:, i_cos] = sn * c + cs * s, cs * c - sn * s
+    return x
+
+
+class DanaeRes(Method):
+    """DANAE-res on the output of leaderboard method ``source`` (see the module docstring).
+
+    Parameters
+    ----------
+    source : leaderboard filter whose output is corrected ("vqf", "fusion", "paper_kf", ...).
+    inputs : ``"multi"`` (default) or ``"angles"``.
+    residual : predict the filter's error (default). ``False`` (ablation): predict the angles
+        themselves, standardised, as chapter 6's variants do, and output them (the gate then
+        blends filter and network output).
+    offset_rad : amplitude of the level augmentation [rad] (0 turns it off); default 0.3.
+    gate : choose each angle's gain on validation (default); ``False``: gain 1.
+    name : leaderboard name; default ``"danae-res[<source>]"``.
+    **train_overrides : :class:`~danae_lite.train.TrainConfig` fields replacing
+        :data:`DEFAULT_SETTINGS` and the context's settings (e.g. ``arch="paper", window=20``).
+
+    Attributes (after ``fit``)
+    --------------------------
+    results : seed -> :class:`~danae_lite.train.TrainResult` (networks with the feature
+        standardisation and the target scale in their buffers).
+    gains : seed -> (3,) gain per angle.
+    params : the settings, the chosen gains and the validation RMSE per gain and angle.
+    """
+
+    def __init__(self, source: str = "vqf", *, inputs: str = "multi", residual: bool = True,
+                 offset_rad: float = 0.3, gate: bool = True, name: str | None = None,
+                 **train_overrides: Any) -> None:
+        super().__init__()
+        if inputs not in _LEVEL_CHANNELS:
+            raise ValueError(f"inputs={inputs!r}: choose 'multi' or 'angles'")
+        if not offset_rad >= 0:
+            raise ValueError(f"offset_rad must be >= 0 rad, got {offset_rad!r}")
+        if source.startswith("danae"):
+            raise ValueError(f"source={source!r}: DANAE-res corrects a filter, not a network's output")
+        self.source, self.inputs, self.residual = source, inputs, bool(residual)
+        self.offset_rad, self.gate = float(offset_rad), bool(gate)
+        self.overrides = {**DEFAULT_SETTINGS, **train_overrides}
+        self.name = name or f"danae-res[{source}]"
+        self.causal = self.overrides["arch"] == "causal" and make_method(source).causal
+        self.description = (f"DANAE-res: a learned correction of {source}'s output "
+                            f"({len(self.channels())} input channels, {self.overrides['arch']} network)")
+
+    def channels(self) -> tuple[str, ...]:
+        """Names of the input channels."""
+        return MULTI_CHANNELS if self.inputs == "multi" else ANGLE_CHANNELS
+
+    def config(self, seed: int) -> TrainConfig:
+        """Training settings of the network of ``seed`` (data standardised here, not by ``train``)."""
+        return replace(self.ctx.train_config, seed=int(seed), normalize="none", **self.overrides)
+
+    def features(self, rec: Recording, est: Array) -> Array:
+        """Input channels (N, C) for the aligned recording ``rec`` and the filter's estimate ``est`` (N, 3) [rad]."""
+        if self.inputs == "multi":
+            return multi_input(rec, est, self.ctx.alignment.north_yaw)
+        return to_circle(est)
+
+    def _target(self, rec: Recording, est: Array) -> Array:
+        return filter_error(est, rec.euler) if self.residual else to_circle(rec.euler)
+
+    def _output(self, est: Array, y: Array, gains: Array) -> Array:
+        """Filter estimate + gain x correction (residual) or a gain-weighted blend (angles)."""
+        if self.residual:
+            out = est + gains * y
+        else:
+            net = np.column_stack([y[:, 0], y[:, 1], np.arctan2(y[:, 2], y[:, 3])])
+            out = est + gains * filter_error(est, net)
+        out[:, 2] = wrap(out[:, 2])
+        return out
+
+    def fit(self, ctx: Context) -> "DanaeRes":
+        from .networks import train_networks
+
+        self.ctx = ctx
+        self.base = ctx.method(self.source)
+        cfg = self.config(ctx.seeds[0])
+        est = {r.name: self.base.predict(r)[0] for r in ctx.train}
+        x = {r.name: self.features(r, est[r.name]) for r in ctx.train}
+        y = {r.name: self._target(r, est[r.name]) for r in ctx.train}
+        # statistics: clean training samples outside the validation tails
+        fit_rows = {}
+        for r in ctx.train:
+            keep = ctx.clean[r.name].copy()
+            keep[validation_block(len(r), cfg)] = False
+            fit_rows[r.name] = keep
+        xa = np.concatenate([x[n][k] for n, k in fit_rows.items()])
+        ya = np.concatenate([y[n][k] for n, k in fit_rows.items()])
+        in_mean, in_std = xa.mean(0), np.where(xa.std(0) > 1e-12, xa.std(0), 1.0)
+        if self.residual:
+            out_mean, out_std = np.zeros(ya.shape[1]), np.sqrt(np.mean(ya * ya, axis=0))
+        else:
+            out_mean, out_std = ya.mean(0), ya.std(0)
+        out_std = np.where(out_std > 1e-12, out_std, 1.0)
+        self.scaling = {"in_mean": in_mean, "in_std": in_std, "out_mean": out_mean, "out_std": out_std}
+
+        rng = np.random.default_rng(int(ctx.seeds[0]))
+        xs, ys = [], []
+        for r in ctx.train:
+            xr = x[r.name]
+            if self.offset_rad > 0:
+                xr = shift_levels(xr, level_offsets(len(r), r.fs, self.offset_rad, rng), self.inputs)
+            xs.append((xr - in_mean) / in_std)
+            ys.append((y[r.name] - out_mean) / out_std)
+        masks = [ctx.clean[r.name] for r in ctx.train]
+        nets = train_networks({"joint": xs}, {"joint": ys}, cfg, ctx.seeds, masks=masks, tag="denoiser",
+                              metadata={"method": self.name, "offset_rad": self.offset_rad,
+                                        "residual": self.residual, "train": [r.name for r in ctx.train]},
+                              cache=ctx.cache, jobs=ctx.jobs, progress=ctx.progress)
+        self.results: dict[int, TrainResult] = {}
+        for (_, seed), res in nets.items():
+            res.model.set_normalization(in_mean, in_std, out_mean, out_std)
+            self.results[int(seed)] = res
+
+        # validation gate: per seed and angle, on the clean validation tails
+        self.gains: dict[int, Array] = {}
+        scores: dict[int, dict[str, list[float]]] = {}
+        for seed in ctx.seeds:
+            sq = np.zeros((len(GATE_GAINS), 3))
+            count = 0
+            for r in ctx.train:
+                block = np.zeros(len(r), dtype=bool)
+                block[validation_block(len(r), cfg)] = True
+                block &= ctx.clean[r.name]
+                if not block.any():
+                    continue
+                corr = self._network_output(int(seed), x[r.name])
+                for i, g in enumerate(GATE_GAINS):
+                    d = filter_error(self._output(est[r.name], corr, np.full(3, g))[block], r.euler[block])
+                    sq[i] += np.sum(d * d, axis=0)
+                count += int(block.sum())
+            if count == 0:
+                raise ValueError(f"{self.name}: no clean validation sample in the training recordings; "
+                                 "the gate has nothing to choose on (set val_fraction > 0 or gate=False)")
+            val_rmse = np.sqrt(sq / count)
+            self.gains[int(seed)] = (np.array([GATE_GAINS[i] for i in val_rmse.argmin(0)]) if self.gate
+                                     else np.ones(3))
+            scores[int(seed)] = {a: val_rmse[:, k].tolist() for k, a in enumerate(("roll", "pitch", "yaw"))}
+        self.params = {"source": self.source, "inputs": list(self.channels()), "residual": self.residual,
+                       "offset_rad": self.offset_rad, "gate": self.gate, "arch": cfg.arch, "window": cfg.window,
+                       "seeds": list(ctx.seeds), "gate_gains": list(GATE_GAINS),
+                       "gains": {s: g.tolist() for s, g in self.gains.items()},
+                       "validation_rmse_rad": scores, "source_params": self.base.params}
+        return self
+
+    def _network_output(self, seed: int, x: Array) -> Array:
+        res = self.results[seed]
+        if res.config.arch == "causal":
+            from .streaming import predict_causal
+
+            return predict_causal(res, x)
+        return predict(res, x)
+
+    def fallback_share(self) -> float:
+        """Fraction of (seed, angle) pairs whose gate fell back to the filter (gain 0)."""
+        g = np.array(list(self.gains.values()))
+        return float(np.mean(g == 0.0))
+
+    def predict(self, rec: Recording) -> list[Array]:
+        est = self.base.predict(rec)[0]
+        x = self.features(rec, est)
+        return [self._output(est, self._network_output(int(s), x), self.gains[int(s)]) for s in self.ctx.seeds]
+
+
+class DenoiserStream:
+    """DANAE-res one sample at a time, for a fitted causal :class:`DanaeRes` of one seed.
+
+    ``step(features, est)`` takes the sample's input channels (``DanaeRes.features`` of that
+    sample) and the filter's estimate (3,) [rad] and returns the corrected roll, pitch, yaw
+    [rad]. It equals :meth:`DanaeRes.predict` sample by sample (same edge padding of the history).
+    """
+
+    def __init__(self, method: DanaeRes, seed: int | None = None, *, num_threads: int | None = 1) -> None:
+        from .streaming import StreamingDanae
+
+        seed = int(method.ctx.seeds[0] if seed is None else seed)
+        if method.results[seed].config.arch != "causal":
+            raise ValueError(f"{method.name}: only the causal network streams (arch={method.results[seed].config.arch!r})")
+        self.method, self.gains = method, method.gains[seed]
+        self.net = StreamingDanae(method.results[seed], num_threads=num_threads)
+
+    def reset(self) -> None:
+        """Forget the history (a new recording)."""
+        self.net.reset()
+
+    def step(self, features: Array, est: Array) -> Array:
+        """Corrected (roll, pitch, yaw) [rad] of one sample."""
+        corr = self.net.step(np.asarray(features, dtype=float))
+        return self.method._output(np.asarray(est, dtype=float).reshape(1, 3),
+                                   np.asarray(corr, dtype=float).reshape(1, -1), self.gains)[0]

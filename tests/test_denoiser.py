@@ -1,0 +1,145 @@
+"""DANAE-res: residual target, level augmentation, validation gate, streaming equals batch."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from danae_lite.angles import wrap
+from danae_lite.datasets import Experiment
+from danae_lite.denoiser import (GATE_GAINS, DanaeRes, DenoiserStream, filter_error, level_offsets,
+                                 shift_levels)
+from danae_lite.leaderboard import run_leaderboard
+from danae_lite.simulate import simulate
+from danae_lite.train import TrainConfig
+from danae_lite.variants import multi_input, to_circle, validation_block
+
+
+def test_filter_error_wraps_yaw_only():
+    est = np.array([[0.1, 0.2, 3.1], [0.0, -0.1, -3.1]])
+    truth = np.array([[0.3, 0.1, -3.1], [0.0, 0.0, 3.1]])
+    d = filter_error(est, truth)
+    np.testing.assert_allclose(d[:, :2], truth[:, :2] - est[:, :2])
+    np.testing.assert_allclose(d[:, 2], [2 * np.pi - 6.2, 6.2 - 2 * np.pi], atol=1e-12)
+
+
+def test_level_offsets_are_bounded_slow_and_seeded():
+    a = level_offsets(6000, 100.0, 0.3, np.random.default_rng(4))
+    b = level_offsets(6000, 100.0, 0.3, np.random.default_rng(4))
+    np.testing.assert_array_equal(a, b)
+    assert np.abs(a).max() <= 0.3 + 1e-12 and np.abs(a).max() > 0.05
+    # the fastest sinusoid (20 s) of amplitude 0.1 changes by at most 2 pi 0.1 / 20 rad/s:
+    # over a 64-sample window at 100 Hz, 3 x 0.02 rad at most
+    step = np.abs(np.diff(a, axis=0)).max()
+    assert step <= 3 * 2 * np.pi * 0.1 / 20 / 100 + 1e-12
+
+
+def test_shift_levels_moves_every_angle_channel_like_the_angles_themselves():
+    rec = simulate("handheld", duration=3.0, seed=1)
+    est = rec.euler + 0.02
+    off = np.column_stack([np.full(len(rec), 0.1), np.full(len(rec), -0.2), np.full(len(rec), 0.7)])
+    shifted = shift_levels(multi_input(rec, est, 0.0), off, "multi")
+    # the filter's angles and the magnetic heading as if the device were turned by the offsets
+    direct = to_circle(est + off)
+    np.testing.assert_allclose(shifted[:, :4], direct, atol=1e-12)
+    x = multi_input(rec, est, 0.0)
+    np.testing.assert_allclose(shifted[:, 4:6], x[:, 4:6] + off[:, :2])
+    heading = np.arctan2(x[:, 6], x[:, 7]) + 0.7
+    np.testing.assert_allclose(shifted[:, 6:8], np.c_[np.sin(heading), np.cos(heading)], atol=1e-12)
+    np.testing.assert_array_equal(shifted[:, 8:], x[:, 8:])  # rates carry no level
+    np.testing.assert_allclose(shift_levels(to_circle(est), off, "angles"), direct, atol=1e-12)
+
+
+@pytest.fixture(scope="module")
+def board():
+    recs = [simulate("handheld", duration=20.0, seed=s, name=f"res-{s}") for s in range(3)]
+    exp = Experiment("oxiod", "simulated", recs[1:], recs[:1], "denoiser")
+    cfg = TrainConfig(max_steps=20, num_threads=1)
+    extra = [DanaeRes("vqf", hidden=16), DanaeRes("paper_kf", inputs="angles", arch="paper", window=20,
+                                                  loss_start=0, name="res-paper")]
+    return run_leaderboard(exp, methods=["paper_kf", "vqf"], seeds=(0, 1), train_config=cfg, progress=False,
+                           extra=extra)
+
+
+def test_gate_picks_the_gain_with_the_lowest_validation_rmse(board):
+    m = board.methods["danae-res[vqf]"]
+    for seed in (0, 1):
+        assert set(m.gains[seed]) <= set(GATE_GAINS)
+        # recompute the validation RMSE of every gain on the clean tails, independently
+        sq, n = np.zeros((len(GATE_GAINS), 3)), 0
+        for r in m.ctx.train:
+            tail = np.zeros(len(r), bool)
+            tail[validation_block(len(r), m.config(seed))] = True
+            tail &= m.ctx.clean[r.name]
+            est = m.base.predict(r)[0]
+            corr = m._network_output(seed, m.features(r, est))
+            for i, g in enumerate(GATE_GAINS):
+                out = est + g * corr
+                d = r.euler - out
+                d[:, 2] = wrap(d[:, 2])
+                sq[i] += (d[tail] ** 2).sum(0)
+            n += tail.sum()
+        val = np.sqrt(sq / n)
+        np.testing.assert_allclose(val.T, np.array([m.params["validation_rmse_rad"][seed][a]
+                                                    for a in ("roll", "pitch", "yaw")]), rtol=1e-9)
+        np.testing.assert_array_equal(m.gains[seed], np.array(GATE_GAINS)[val.argmin(0)])
+        # the gate never does worse than the filter on validation
+        assert (val.min(0) <= val[0] + 1e-15).all()
+
+
+def test_gain_zero_is_the_filter_exactly_and_predictions_are_seeded(board):
+    m = board.methods["danae-res[vqf]"]
+    rec = board.alignment.apply(board.experiment.test[0])
+    est = m.base.predict(rec)[0]
+    saved = {s: g.copy() for s, g in m.gains.items()}
+    try:
+        m.gains = {s: np.zeros(3) for s in saved}
+        for out in m.predict(rec):
+            np.testing.assert_allclose(out, np.column_stack([est[:, :2], wrap(est[:, 2])]), atol=1e-15)
+    finally:
+        m.gains = saved
+    assert m.causal  # a causal network on a causal filter
+    assert not board.methods["res-paper"].causal
+    # the seeds' networks differ, and a refit with the same seed gives the same numbers
+    p = m.predict(rec)
+    assert not np.allclose(m._network_output(0, m.features(rec, est)), m._network_output(1, m.features(rec, est)))
+    again = DanaeRes("vqf", hidden=16).fit(m.ctx)
+    np.testing.assert_array_equal(again.predict(rec)[0], p[0])
+
+
+def test_network_buffers_map_raw_features_to_a_correction_in_rad(board):
+    m = board.methods["danae-res[vqf]"]
+    norm = m.results[0].model.normalization()
+    np.testing.assert_allclose(norm["in_mean"], m.scaling["in_mean"], rtol=1e-6, atol=1e-7)
+    np.testing.assert_allclose(norm["out_mean"], 0.0)  # targets scaled, not centred
+    rms = np.sqrt(np.mean(np.concatenate(
+        [filter_error(m.base.predict(r)[0], r.euler)[m.ctx.clean[r.name] & _fit_rows(m, r)] for r in m.ctx.train]) ** 2,
+        axis=0))
+    np.testing.assert_allclose(norm["out_std"], rms, rtol=1e-5)
+
+
+def _fit_rows(m: DanaeRes, r) -> np.ndarray:
+    keep = np.ones(len(r), bool)
+    keep[validation_block(len(r), m.config(0))] = False
+    return keep
+
+
+def test_streaming_equals_batch(board):
+    m = board.methods["danae-res[vqf]"]
+    rec = board.alignment.apply(board.experiment.test[0]).slice(0, 400)
+    est = m.base.predict(rec)[0]
+    x = m.features(rec, est)
+    stream = DenoiserStream(m, seed=1)
+    online = np.array([stream.step(x[i], est[i]) for i in range(len(rec))])
+    batch = m._output(est, m._network_output(1, x), m.gains[1])
+    np.testing.assert_allclose(online, batch, atol=2e-6)
+    with pytest.raises(ValueError, match="only the causal network streams"):
+        DenoiserStream(board.methods["res-paper"])
+
+
+def test_bad_settings_are_refused():
+    with pytest.raises(ValueError, match="inputs='raw'"):
+        DanaeRes("vqf", inputs="raw")
+    with pytest.raises(ValueError, match="offset_rad must be >= 0"):
+        DanaeRes("vqf", offset_rad=-0.1)
+    with pytest.raises(ValueError, match="corrects a filter"):
+        DanaeRes("danae")
