@@ -25,10 +25,15 @@ networks or the training loop (:func:`danae_lite.networks.train_networks`):
 * **Architecture.** ``arch="causal"`` (default, :class:`~danae_lite.model.DanaeCausal`, 64
   channels, 64-sample windows, loss on positions 30-63): on a causal filter it runs on-line
   (:class:`DenoiserStream`). ``arch="paper"`` looks ahead.
-* **Validation gate** (``gate=True``): per angle, the gain ``g`` in :data:`GATE_GAINS` with the
-  lowest RMSE on the clean validation tails of the training recordings (samples no network
-  trained on, :func:`danae_lite.variants.validation_block`). ``g = 0`` falls back to the
-  filter. Nothing of the test recordings takes part.
+* **Gate chosen across recordings** (``gate=True``): per angle, the gain ``g`` in
+  :data:`GATE_GAINS` with the lowest RMSE on training recordings the scoring network has not
+  seen. The training recordings are split into at most ``gate_folds`` inner folds; for each,
+  a network trained on the other folds corrects that fold's recordings (clean samples). A
+  network's validation tail would flatter it: it shares its recording's frame offsets and
+  motion with the samples the network trained on, and what the network learns of one
+  recording does not transfer to the next. ``g = 0`` falls back to the filter. With a single
+  training recording, the validation tails are all there is, and ``gate_data`` says so.
+  Nothing of the test recordings takes part.
 
 Frames and units: every angle is ZYX Euler (roll, pitch, yaw) [rad] in the ground-truth
 frame of the aligned recordings; yaw differences are wrapped to [-pi, pi).
@@ -62,6 +67,13 @@ _LEVEL_CHANNELS = {
     "multi": {"roll": (0, 4), "pitch": (1, 5), "yaw": ((2, 3), (6, 7))},
     "angles": {"roll": (0,), "pitch": (1,), "yaw": ((2, 3),)},
 }
+
+
+def _tail(n: int, config: TrainConfig) -> NDArray[np.bool_]:
+    """True on the validation tail of an ``n``-sample training recording."""
+    m = np.zeros(n, dtype=bool)
+    m[validation_block(n, config)] = True
+    return m
 
 
 def filter_error(est: Array, truth: Array) -> Array:
@@ -110,7 +122,8 @@ class DanaeRes(Method):
         themselves, standardised, as chapter 6's variants do, and output them (the gate then
         blends filter and network output).
     offset_rad : amplitude of the level augmentation [rad] (0 turns it off); default 0.3.
-    gate : choose each angle's gain on validation (default); ``False``: gain 1.
+    gate : choose each angle's gain on held-out training data (default); ``False``: gain 1.
+    gate_folds : inner folds of the training recordings for the gate (at most this many).
     name : leaderboard name; default ``"danae-res[<source>]"``.
     **train_overrides : :class:`~danae_lite.train.TrainConfig` fields replacing
         :data:`DEFAULT_SETTINGS` and the context's settings (e.g. ``arch="paper", window=20``).
@@ -119,12 +132,14 @@ class DanaeRes(Method):
     --------------------------
     results : seed -> :class:`~danae_lite.train.TrainResult` (networks with the feature
         standardisation and the target scale in their buffers).
+    gate_results : (inner fold, seed) -> the network trained without that fold's recordings.
     gains : seed -> (3,) gain per angle.
-    params : the settings, the chosen gains and the validation RMSE per gain and angle.
+    gate_data : what the gate was chosen on ("held-out training recordings" or "validation tails").
+    params : the settings, the chosen gains and the gate's RMSE per gain and angle.
     """
 
     def __init__(self, source: str = "vqf", *, inputs: str = "multi", residual: bool = True,
-                 offset_rad: float = 0.3, gate: bool = True, name: str | None = None,
+                 offset_rad: float = 0.3, gate: bool = True, gate_folds: int = 4, name: str | None = None,
                  **train_overrides: Any) -> None:
         super().__init__()
         if inputs not in _LEVEL_CHANNELS:
@@ -134,7 +149,9 @@ class DanaeRes(Method):
         if source.startswith("danae"):
             raise ValueError(f"source={source!r}: DANAE-res corrects a filter, not a network's output")
         self.source, self.inputs, self.residual = source, inputs, bool(residual)
-        self.offset_rad, self.gate = float(offset_rad), bool(gate)
+        if int(gate_folds) != gate_folds or gate_folds < 2:
+            raise ValueError(f"gate_folds must be an integer >= 2, got {gate_folds!r}")
+        self.offset_rad, self.gate, self.gate_folds = float(offset_rad), bool(gate), int(gate_folds)
         self.overrides = {**DEFAULT_SETTINGS, **train_overrides}
         self.name = name or f"danae-res[{source}]"
         self.causal = self.overrides["arch"] == "causal" and make_method(source).causal
@@ -168,87 +185,117 @@ class DanaeRes(Method):
         out[:, 2] = wrap(out[:, 2])
         return out
 
+    def _gate_folds(self, names: list[str]) -> list[list[str]]:
+        """Inner folds of the training recordings for the gate (round robin, at most
+        ``gate_folds``); none with fewer than two recordings or without a gate."""
+        if not self.gate or len(names) < 2:
+            return []
+        k = min(self.gate_folds, len(names))
+        return [names[i::k] for i in range(k)]
+
+    def _prepare(self, recs: list[Recording], x: dict[str, Array], y: dict[str, Array], cfg: TrainConfig,
+                 rng: np.random.Generator) -> tuple[list[Array], list[Array], list[Array], dict[str, Array]]:
+        """Standardised (and level-augmented) inputs, scaled targets, masks and the scaling of ``recs``."""
+        rows = []
+        for r in recs:
+            keep = self.ctx.clean[r.name].copy()
+            keep[validation_block(len(r), cfg)] = False  # statistics: clean samples outside the validation tails
+            rows.append(keep)
+        xa = np.concatenate([x[r.name][k] for r, k in zip(recs, rows)])
+        ya = np.concatenate([y[r.name][k] for r, k in zip(recs, rows)])
+        in_mean, in_std = xa.mean(0), np.where(xa.std(0) > 1e-12, xa.std(0), 1.0)
+        if self.residual:
+            out_mean, out_std = np.zeros(ya.shape[1]), np.sqrt(np.mean(ya * ya, axis=0))
+        else:
+            out_mean, out_std = ya.mean(0), ya.std(0)
+        scaling = {"in_mean": in_mean, "in_std": in_std, "out_mean": out_mean,
+                   "out_std": np.where(out_std > 1e-12, out_std, 1.0)}
+        xs, ys = [], []
+        for r in recs:
+            xr = x[r.name]
+            if self.offset_rad > 0:
+                xr = shift_levels(xr, level_offsets(len(r), r.fs, self.offset_rad, rng), self.inputs)
+            xs.append((xr - scaling["in_mean"]) / scaling["in_std"])
+            ys.append((y[r.name] - scaling["out_mean"]) / scaling["out_std"])
+        return xs, ys, [self.ctx.clean[r.name] for r in recs], scaling
+
     def fit(self, ctx: Context) -> "DanaeRes":
         from .networks import train_networks
 
         self.ctx = ctx
         self.base = ctx.method(self.source)
         cfg = self.config(ctx.seeds[0])
+        by_name = {r.name: r for r in ctx.train}
         est = {r.name: self.base.predict(r)[0] for r in ctx.train}
         x = {r.name: self.features(r, est[r.name]) for r in ctx.train}
         y = {r.name: self._target(r, est[r.name]) for r in ctx.train}
-        # statistics: clean training samples outside the validation tails
-        fit_rows = {}
-        for r in ctx.train:
-            keep = ctx.clean[r.name].copy()
-            keep[validation_block(len(r), cfg)] = False
-            fit_rows[r.name] = keep
-        xa = np.concatenate([x[n][k] for n, k in fit_rows.items()])
-        ya = np.concatenate([y[n][k] for n, k in fit_rows.items()])
-        in_mean, in_std = xa.mean(0), np.where(xa.std(0) > 1e-12, xa.std(0), 1.0)
-        if self.residual:
-            out_mean, out_std = np.zeros(ya.shape[1]), np.sqrt(np.mean(ya * ya, axis=0))
-        else:
-            out_mean, out_std = ya.mean(0), ya.std(0)
-        out_std = np.where(out_std > 1e-12, out_std, 1.0)
-        self.scaling = {"in_mean": in_mean, "in_std": in_std, "out_mean": out_mean, "out_std": out_std}
-
-        rng = np.random.default_rng(int(ctx.seeds[0]))
-        xs, ys = [], []
-        for r in ctx.train:
-            xr = x[r.name]
-            if self.offset_rad > 0:
-                xr = shift_levels(xr, level_offsets(len(r), r.fs, self.offset_rad, rng), self.inputs)
-            xs.append((xr - in_mean) / in_std)
-            ys.append((y[r.name] - out_mean) / out_std)
-        masks = [ctx.clean[r.name] for r in ctx.train]
-        nets = train_networks({"joint": xs}, {"joint": ys}, cfg, ctx.seeds, masks=masks, tag="denoiser",
-                              metadata={"method": self.name, "offset_rad": self.offset_rad,
-                                        "residual": self.residual, "train": [r.name for r in ctx.train]},
+        # the network for prediction ("joint"), and one per inner fold for the gate ("without-k")
+        folds = self._gate_folds(list(by_name))
+        sets = {"joint": list(ctx.train)}
+        for k, held in enumerate(folds):
+            sets[f"without-{k}"] = [r for r in ctx.train if r.name not in held]
+        prepared = {head: self._prepare(recs, x, y, cfg, np.random.default_rng([int(ctx.seeds[0]), i]) if i else
+                                        np.random.default_rng(int(ctx.seeds[0])))
+                    for i, (head, recs) in enumerate(sets.items())}
+        nets = train_networks({h: p[0] for h, p in prepared.items()}, {h: p[1] for h, p in prepared.items()}, cfg,
+                              ctx.seeds, masks={h: p[2] for h, p in prepared.items()}, tag="denoiser",
+                              metadata={"method": self.name, "offset_rad": self.offset_rad, "residual": self.residual,
+                                        "train": [r.name for r in ctx.train]},
                               cache=ctx.cache, jobs=ctx.jobs, progress=ctx.progress)
-        self.results: dict[int, TrainResult] = {}
-        for (_, seed), res in nets.items():
-            res.model.set_normalization(in_mean, in_std, out_mean, out_std)
-            self.results[int(seed)] = res
+        for (head, _), res in nets.items():
+            sc = prepared[head][3]
+            res.model.set_normalization(sc["in_mean"], sc["in_std"], sc["out_mean"], sc["out_std"])
+        self.scaling = prepared["joint"][3]
+        self.results: dict[int, TrainResult] = {seed: nets[("joint", seed)] for seed in map(int, ctx.seeds)}
+        self.gate_results: dict[tuple[int, int], TrainResult] = {
+            (k, int(seed)): nets[(f"without-{k}", int(seed))] for k in range(len(folds)) for seed in ctx.seeds}
 
-        # validation gate: per seed and angle, on the clean validation tails
+        # the gate: per seed and angle, the gain with the lowest RMSE on clean samples no network
+        # it scores has trained on: each inner fold's recordings for that fold's network, or
+        # (one training recording) the validation tails of the prediction network
+        self.gate_data = "held-out training recordings" if folds else "validation tails"
         self.gains: dict[int, Array] = {}
         scores: dict[int, dict[str, list[float]]] = {}
-        for seed in ctx.seeds:
-            sq = np.zeros((len(GATE_GAINS), 3))
-            count = 0
-            for r in ctx.train:
-                block = np.zeros(len(r), dtype=bool)
-                block[validation_block(len(r), cfg)] = True
-                block &= ctx.clean[r.name]
-                if not block.any():
+        for seed in map(int, ctx.seeds):
+            sq, count = np.zeros((len(GATE_GAINS), 3)), 0
+            pairs = ([(nets[(f"without-{k}", seed)], by_name[n], np.ones(len(by_name[n]), bool))
+                      for k, held in enumerate(folds) for n in held] if folds else
+                     [(nets[("joint", seed)], r, _tail(len(r), cfg)) for r in ctx.train])
+            for res, r, where in pairs:
+                ok = where & ctx.clean[r.name]
+                if not ok.any():
                     continue
-                corr = self._network_output(int(seed), x[r.name])
+                corr = self._run_network(res, x[r.name])
                 for i, g in enumerate(GATE_GAINS):
-                    d = filter_error(self._output(est[r.name], corr, np.full(3, g))[block], r.euler[block])
+                    d = filter_error(self._output(est[r.name], corr, np.full(3, g))[ok], r.euler[ok])
                     sq[i] += np.sum(d * d, axis=0)
-                count += int(block.sum())
+                count += int(ok.sum())
             if count == 0:
-                raise ValueError(f"{self.name}: no clean validation sample in the training recordings; "
-                                 "the gate has nothing to choose on (set val_fraction > 0 or gate=False)")
+                raise ValueError(f"{self.name}: no clean sample to choose the gate on "
+                                 "(set val_fraction > 0, give more training recordings, or gate=False)")
             val_rmse = np.sqrt(sq / count)
-            self.gains[int(seed)] = (np.array([GATE_GAINS[i] for i in val_rmse.argmin(0)]) if self.gate
-                                     else np.ones(3))
-            scores[int(seed)] = {a: val_rmse[:, k].tolist() for k, a in enumerate(("roll", "pitch", "yaw"))}
+            self.gains[seed] = (np.array([GATE_GAINS[i] for i in val_rmse.argmin(0)]) if self.gate
+                                else np.ones(3))
+            scores[seed] = {a: val_rmse[:, k].tolist() for k, a in enumerate(("roll", "pitch", "yaw"))}
         self.params = {"source": self.source, "inputs": list(self.channels()), "residual": self.residual,
-                       "offset_rad": self.offset_rad, "gate": self.gate, "arch": cfg.arch, "window": cfg.window,
+                       "offset_rad": self.offset_rad, "gate": self.gate, "gate_data": self.gate_data,
+                       "gate_folds": [list(f) for f in folds], "arch": cfg.arch, "window": cfg.window,
                        "seeds": list(ctx.seeds), "gate_gains": list(GATE_GAINS),
                        "gains": {s: g.tolist() for s, g in self.gains.items()},
-                       "validation_rmse_rad": scores, "source_params": self.base.params}
+                       "gate_rmse_rad": scores, "source_params": self.base.params}
         return self
 
-    def _network_output(self, seed: int, x: Array) -> Array:
-        res = self.results[seed]
+    @staticmethod
+    def _run_network(res: TrainResult, x: Array) -> Array:
         if res.config.arch == "causal":
             from .streaming import predict_causal
 
             return predict_causal(res, x)
         return predict(res, x)
+
+    def _network_output(self, seed: int, x: Array) -> Array:
+        """The prediction network's correction (N, 3) [rad] (residual) for features ``x``."""
+        return self._run_network(self.results[seed], x)
 
     def fallback_share(self) -> float:
         """Fraction of (seed, angle) pairs whose gate fell back to the filter (gain 0)."""

@@ -129,7 +129,7 @@ def train_networks(
     config: TrainConfig,
     seeds: Sequence[int],
     *,
-    masks: Sequence[NDArray[np.bool_]] | None = None,
+    masks: Sequence[NDArray[np.bool_]] | Mapping[str, Sequence[NDArray[np.bool_]]] | None = None,
     tag: str = "danae",
     metadata: Mapping[str, Any] | None = None,
     cache: str | os.PathLike[str] | None = None,
@@ -144,7 +144,8 @@ def train_networks(
         arrays (N,) or (N, C) in the units of the signal (rad for angles).
     config : training settings; its ``seed`` is replaced by each of ``seeds``.
     seeds : training seeds (distinct).
-    masks : per training recording, the target samples allowed in the loss (shared by the heads).
+    masks : per training recording, the target samples allowed in the loss: one list shared by
+        the heads, or ``{head: list}`` when the heads train on different recordings.
     tag : file-name prefix in the cache (``<tag>-<head>``).
     metadata : stored with each cached network (plus ``head`` and ``seed``).
     cache, jobs, progress : see :func:`run_jobs`.
@@ -159,9 +160,12 @@ def train_networks(
     seeds = [int(s) for s in seeds]
     if not seeds or len(set(seeds)) != len(seeds):
         raise ValueError(f"seeds must be distinct and non-empty, got {seeds}")
-    m = None if masks is None else tuple(np.ascontiguousarray(x, dtype=bool) for x in masks)
+    if isinstance(masks, Mapping) and set(masks) != set(inputs):
+        raise ValueError(f"masks must have the heads of the inputs, got {sorted(masks)} and {sorted(inputs)}")
     keys, work = [], []
     for head in inputs:
+        mh = masks[head] if isinstance(masks, Mapping) else masks
+        m = None if mh is None else tuple(np.ascontiguousarray(x, dtype=bool) for x in mh)
         xs = tuple(np.ascontiguousarray(a) for a in inputs[head])
         ys = tuple(np.ascontiguousarray(a) for a in targets[head])
         for seed in seeds:

@@ -60,30 +60,54 @@ def board():
                            extra=extra)
 
 
-def test_gate_picks_the_gain_with_the_lowest_validation_rmse(board):
+def _gate_rmse(m: DanaeRes, pairs) -> np.ndarray:
+    """RMSE per gain (rows) and angle of filter + gain x correction, recomputed here."""
+    sq, n = np.zeros((len(GATE_GAINS), 3)), 0
+    for res, r, where in pairs:
+        est = m.base.predict(r)[0]
+        corr = m._run_network(res, m.features(r, est))
+        ok = where & m.ctx.clean[r.name]
+        for i, g in enumerate(GATE_GAINS):
+            d = r.euler - (est + g * corr)
+            d[:, 2] = wrap(d[:, 2])
+            sq[i] += (d[ok] ** 2).sum(0)
+        n += ok.sum()
+    return np.sqrt(sq / n)
+
+
+def test_gate_is_chosen_on_training_recordings_the_scoring_network_never_saw(board):
     m = board.methods["danae-res[vqf]"]
+    train = {r.name: r for r in m.ctx.train}
+    assert m.gate_data == "held-out training recordings"
+    assert m.params["gate_folds"] == [[n] for n in train]  # two recordings: each held out once
     for seed in (0, 1):
         assert set(m.gains[seed]) <= set(GATE_GAINS)
-        # recompute the validation RMSE of every gain on the clean tails, independently
-        sq, n = np.zeros((len(GATE_GAINS), 3)), 0
-        for r in m.ctx.train:
-            tail = np.zeros(len(r), bool)
-            tail[validation_block(len(r), m.config(seed))] = True
-            tail &= m.ctx.clean[r.name]
-            est = m.base.predict(r)[0]
-            corr = m._network_output(seed, m.features(r, est))
-            for i, g in enumerate(GATE_GAINS):
-                out = est + g * corr
-                d = r.euler - out
-                d[:, 2] = wrap(d[:, 2])
-                sq[i] += (d[tail] ** 2).sum(0)
-            n += tail.sum()
-        val = np.sqrt(sq / n)
-        np.testing.assert_allclose(val.T, np.array([m.params["validation_rmse_rad"][seed][a]
+        pairs = []
+        for k, (held,) in enumerate(m.params["gate_folds"]):
+            res = m.gate_results[(k, seed)]
+            # the inner network trained on the other recording only
+            other = next(r for n, r in train.items() if n != held)
+            assert res.n_train_windows + res.n_val_windows < len(other)
+            pairs.append((res, train[held], np.ones(len(train[held]), bool)))
+        val = _gate_rmse(m, pairs)
+        np.testing.assert_allclose(val.T, np.array([m.params["gate_rmse_rad"][seed][a]
                                                     for a in ("roll", "pitch", "yaw")]), rtol=1e-9)
         np.testing.assert_array_equal(m.gains[seed], np.array(GATE_GAINS)[val.argmin(0)])
-        # the gate never does worse than the filter on validation
-        assert (val.min(0) <= val[0] + 1e-15).all()
+        assert (val.min(0) <= val[0] + 1e-15).all()  # never worse than the filter where it was chosen
+
+
+def test_one_training_recording_gates_on_its_validation_tail():
+    recs = [simulate("handheld", duration=15.0, seed=s, name=f"one-{s}") for s in range(2)]
+    exp = Experiment("oxiod", "simulated", recs[1:], recs[:1], "one")
+    m = DanaeRes("paper_kf", hidden=16)
+    run_leaderboard(exp, methods=(), seeds=(0,), train_config=TrainConfig(max_steps=10, num_threads=1),
+                    progress=False, extra=[m])
+    assert m.gate_data == "validation tails" and m.gate_results == {}
+    r = m.ctx.train[0]
+    tail = np.zeros(len(r), bool)
+    tail[validation_block(len(r), m.config(0))] = True
+    val = _gate_rmse(m, [(m.results[0], r, tail)])
+    np.testing.assert_array_equal(m.gains[0], np.array(GATE_GAINS)[val.argmin(0)])
 
 
 def test_gain_zero_is_the_filter_exactly_and_predictions_are_seeded(board):
@@ -143,3 +167,5 @@ def test_bad_settings_are_refused():
         DanaeRes("vqf", offset_rad=-0.1)
     with pytest.raises(ValueError, match="corrects a filter"):
         DanaeRes("danae")
+    with pytest.raises(ValueError, match="gate_folds must be an integer >= 2"):
+        DanaeRes("vqf", gate_folds=1)
