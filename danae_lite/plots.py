@@ -24,7 +24,11 @@ COLORS: dict[str, str] = {
     "gyro": "#2ca02c",
     "other": "#9467bd",
 }
-"""Colour of each kind of curve."""
+"""Colour of each kind of curve (methods and signals)."""
+
+ANGLE_COLORS: dict[str, str] = {"roll": "#1b9e77", "pitch": "#d95f02", "yaw": "#7570b3"}
+"""Colour of each angle, where a figure separates angles rather than methods (a palette of its
+own, so that an angle is never mistaken for a method)."""
 
 LABELS: dict[str, str] = {
     "truth": "ground truth",

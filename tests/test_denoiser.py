@@ -169,3 +169,21 @@ def test_bad_settings_are_refused():
         DanaeRes("danae")
     with pytest.raises(ValueError, match="gate_folds must be an integer >= 2"):
         DanaeRes("vqf", gate_folds=1)
+
+
+def test_cli_runs_the_recommended_denoiser_by_name(tmp_path, capsys, monkeypatch):
+    import json
+
+    from danae_lite import cli
+
+    monkeypatch.delenv("DANAE_DATA", raising=False)
+    monkeypatch.delenv("DANAE_CACHE", raising=False)
+    code = cli.main(["leaderboard", "--fast", "--seeds", "0", "--max-steps", "2", "--threads", "1",
+                     "--methods", "vqf", "danae-res[vqf]", "--out", str(tmp_path)])
+    assert code == 0, capsys.readouterr().err
+    data = json.loads((tmp_path / "leaderboard.json").read_text())
+    assert list(data["methods"]) == ["vqf", "danae-res[vqf]"]
+    rows = [r for r in (tmp_path / "leaderboard.csv").read_text().splitlines() if "danae-res[vqf]" in r]
+    assert rows and all(",True," in r for r in rows)  # causal: a causal net behind a causal filter
+    code = cli.main(["leaderboard", "--methods", "danae-res[danae]", "--out", str(tmp_path / "x")])
+    assert code == 2 and "invalid choice" in capsys.readouterr().err
