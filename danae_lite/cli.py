@@ -52,7 +52,8 @@ from typing import TYPE_CHECKING, Any
 
 from .config import CACHE_ENV, DATA_ENV, FAST_ENV, FAST_EPOCHS, FAST_MAX_STEPS, JOBS_ENV
 from .datasets import (BROAD_TEST_GROUP, BROAD_TRAIN_GROUP, FAST_BROAD_SAMPLES, FAST_DURATION, FAST_SAMPLES,
-                       OXIOD_TEST, OXIOD_TRAIN, TRAIN_FRACTION)
+                       OXIOD_TEST, OXIOD_TRAIN, PAPER_SPLIT_FOLDER, PAPER_SPLIT_TEST, PAPER_SPLIT_TRAIN,
+                       TRAIN_FRACTION)
 
 if TYPE_CHECKING:
     from .config import RunSettings
@@ -121,6 +122,10 @@ data selection:
   With neither --data-dir nor ${DATA_ENV}, the deterministic simulator stands in (the output
   and metrics.json say "simulated"). A --data-dir without the experiment's folder is an
   error; a ${DATA_ENV} without it lets the simulator stand in, as in the notebooks.
+
+  --split paper (oxiod): the paper's own split, for readers who have OxIOD's slow-walking
+    set: <dir>/oxiod/{"/".join(PAPER_SPLIT_FOLDER)}/syn/imuK.csv + viK.csv; train {", ".join(f"imu{k}" for k in PAPER_SPLIT_TRAIN)}; test {", ".join(f"imu{k}" for k in PAPER_SPLIT_TEST)}.
+    A missing file is an error naming it. Not with --train/--test or --folds.
 
   --train/--test name files instead (loaded as "real" data):
     oxiod: imuK.csv files (the Vicon viK.csv beside each is read too) or folders holding
@@ -226,6 +231,9 @@ def _add_common(p: argparse.ArgumentParser, command: str) -> None:
     p.add_argument("--test", metavar="FILE", nargs="+", default=None,
                      help="test recordings (see 'data selection' below). Default: the experiment's test "
                           "recordings in the data directory")
+    p.add_argument("--split", choices=("default", "paper"), default="default",
+                   help="oxiod only: 'paper' takes the paper's own split from the slow-walking set (see 'data "
+                        "selection' below). Default: the book's handheld split")
     p.add_argument("--seeds", metavar="SEED", nargs="+", type=_seed, default=list(DEFAULT_SEEDS),
                      help="training seeds; one network per angle and seed. Default: 0 1 2")
     p.add_argument("--epochs", metavar="N", type=_positive_int, default=None,
@@ -343,6 +351,27 @@ def _unique_names(train: list[Any], test: list[Any]) -> tuple[list[Any], list[An
     return out[0], out[1]
 
 
+def _paper_split(args: argparse.Namespace, name: str, base: Path | None) -> argparse.Namespace:
+    """``--split paper``: the arguments with ``--train``/``--test`` set to the paper's files."""
+    from . import datasets
+
+    if name != "oxiod":
+        raise UsageError(f"--split paper is OxIOD's split; --experiment is {name}")
+    if args.train is not None or args.test is not None:
+        raise UsageError("--split paper chooses the recordings itself; leave out --train/--test")
+    root = datasets.oxiod_root(base) if base is not None else None
+    if root is None:
+        where = f"{base}/oxiod" if base is not None else f"a data directory (--data-dir or ${DATA_ENV})"
+        raise UsageError(f"--split paper needs OxIOD's slow-walking set; no oxiod/ folder in {where}")
+    syn = root.joinpath(*PAPER_SPLIT_FOLDER, "syn")
+    missing = [str(syn / f"{p}{k}.csv") for k in PAPER_SPLIT_TEST + PAPER_SPLIT_TRAIN for p in ("imu", "vi")
+               if not (syn / f"{p}{k}.csv").is_file()]
+    if missing:
+        raise UsageError(f"--split paper: missing {', '.join(missing)} (OxIOD's slow-walking set, original layout)")
+    return argparse.Namespace(**{**vars(args), "train": [str(syn / f"imu{k}.csv") for k in PAPER_SPLIT_TRAIN],
+                                 "test": [str(syn / f"imu{k}.csv") for k in PAPER_SPLIT_TEST]})
+
+
 def load_data(args: argparse.Namespace, fast: bool) -> Any:
     """Resolve the experiment's recordings from the arguments; returns a datasets.Experiment."""
     from . import datasets, ucs
@@ -350,6 +379,8 @@ def load_data(args: argparse.Namespace, fast: bool) -> Any:
 
     name = args.experiment
     base = resolve_data_dir(args.data_dir)  # FileNotFoundError for a missing folder
+    if getattr(args, "split", "default") == "paper":
+        args = _paper_split(args, name, base)
     if args.data_dir is not None and args.train is None and args.test is None:
         folder = base / name
         if not folder.is_dir():
@@ -606,8 +637,8 @@ def folds(args: argparse.Namespace) -> int:
 
     if args.experiment == "ucs":
         raise UsageError("--folds: ucs is one recording, there is nothing to hold out; use oxiod or broad")
-    if args.train is not None or args.test is not None:
-        raise UsageError("--folds chooses the training and test recordings itself; leave out --train/--test")
+    if args.train is not None or args.test is not None or args.split != "default":
+        raise UsageError("--folds chooses the training and test recordings itself; leave out --train/--test/--split")
     settings, out_dir, _, config = _prepare(args)
     methods = args.methods or _method_names()
     if args.experiment == "oxiod":

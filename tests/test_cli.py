@@ -226,3 +226,33 @@ def test_folds_usage_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     assert code == 2 and "nothing to hold out" in err
     code, _, err = run(["leaderboard", "--folds", *TINY, "--test", str(tmp_path), "--out", str(tmp_path)], capsys)
     assert code == 2 and "--train/--test" in err
+
+
+def test_paper_split_reads_the_slow_walking_files(tmp_path, capsys, monkeypatch):
+    """``--split paper``: test slow walking/data1/syn/imu1, train imu2-imu7, from the data directory."""
+    monkeypatch.delenv("DANAE_CACHE", raising=False)
+    syn = tmp_path / "data" / "oxiod" / "slow walking" / "data1" / "syn"
+    for k in range(1, 8):
+        imu, vi, _ = synthetic_oxiod(seed=10 + k)
+        write_rows(syn / f"imu{k}.csv", imu)
+        write_rows(syn / f"vi{k}.csv", vi)
+    out = tmp_path / "out"
+    code, stdout, err = run(["reproduce", "--split", "paper", "--data-dir", str(tmp_path / "data"), *TINY,
+                             "--out", str(out)], capsys)
+    assert code == 0, err
+    info = json.loads((out / "metrics.json").read_text())
+    assert info["data"] == "real"
+    assert info["train"] == [f"slow walking/data1/imu{k}" for k in range(2, 8)]
+    assert info["test"] == ["slow walking/data1/imu1"]
+    # a missing file is named; the split does not mix with explicit files or cross-validation
+    (syn / "vi5.csv").unlink()
+    code, _, err = run(["reproduce", "--split", "paper", "--data-dir", str(tmp_path / "data"), *TINY,
+                        "--out", str(out)], capsys)
+    assert code == 2 and "vi5.csv" in err and "slow-walking" in err
+    code, _, err = run(["reproduce", "--split", "paper", "--train", str(syn / "imu2.csv"), *TINY,
+                        "--out", str(out)], capsys)
+    assert code == 2 and "leave out --train/--test" in err
+    code, _, err = run(["leaderboard", "--folds", "--split", "paper", *TINY, "--out", str(out)], capsys)
+    assert code == 2 and "--split" in err
+    code, _, err = run(["reproduce", "--experiment", "ucs", "--split", "paper", *TINY, "--out", str(out)], capsys)
+    assert code == 2 and "OxIOD's split" in err
