@@ -26,6 +26,35 @@ COLORS: dict[str, str] = {
 }
 """Colour of each kind of curve (methods and signals)."""
 
+METHOD_COLORS: dict[str, str] = {
+    "constant": "#bdbdbd",
+    "paper_kf": COLORS["kf"],
+    "tuned_kf": "#8c564b",
+    "tuned_kf_rts": "#c49c94",
+    "butterworth": "#bcbd22",
+    "moving_average": "#dbdb8d",
+    "linear_map": "#7f7f7f",
+    "fusion": "#e377c2",
+    "vqf": "#17becf",
+    "madgwick": "#9edae5",
+    "mahony": "#f7b6d2",
+    "riann": "#9467bd",
+    "danae": COLORS["danae"],
+    "danae-res": "#1f3b99",
+}
+"""Colour of each leaderboard method (``danae_lite.baselines.METHODS``, plus ``danae-res``): the
+paper's KF and DANAE keep the colours of the authors' figure; no method uses an angle's colour."""
+
+
+def method_color(name: str) -> str:
+    """Colour of a leaderboard method; variants such as ``danae-res[vqf]`` or ``danae[vqf]``
+    take their family's colour."""
+    base = name.split("[", 1)[0]
+    if base not in METHOD_COLORS:
+        raise KeyError(f"no colour for method {name!r}; known: {', '.join(METHOD_COLORS)}")
+    return METHOD_COLORS[base]
+
+
 ANGLE_COLORS: dict[str, str] = {"roll": "#1b9e77", "pitch": "#d95f02", "yaw": "#7570b3"}
 """Colour of each angle, where a figure separates angles rather than methods (a palette of its
 own, so that an angle is never mistaken for a method)."""
