@@ -195,7 +195,8 @@ def build_parser() -> argparse.ArgumentParser:
                          "motion found (handheld, trolley, multi users) and handheld -> the other motions; broad -> "
                          "undisturbed -> disturbed trials, grouped by disturbance. Every method is refitted per "
                          "split; writes folds.csv (one row per held-out recording), folds_summary.csv (mean and std "
-                         "over recordings), folds_params.csv, folds.json (and folds_broad.csv). Not with "
+                         "over recordings), folds_params.csv, folds.json (and folds_broad.csv; no_harm.csv when a "
+                         "danae-res[FILTER] runs beside its FILTER). Not with "
                          "--train/--test or ucs")
     return parser
 
@@ -669,6 +670,11 @@ def folds(args: argparse.Namespace) -> int:
         with pd.option_context("display.float_format", "{:.2f}".format, "display.width", 160):
             print("\nBROAD metric [deg], mean and std over the held-out trials:")
             print(cv.trial_summary().to_string(na_rep="-"))
+    if cv.corrections():
+        with pd.option_context("display.float_format", "{:.1f}".format, "display.width", 160):
+            print("\nNo harm? Each correction against the filter it corrects, per held-out recording "
+                  "(change: error reduction [%], negative = worse than the filter):")
+            print(cv.no_harm_summary().to_string())
     print(f"time: {time.perf_counter() - t0:.1f} s")
     print("wrote " + ", ".join(str(p) for p in written.values()))
     return 0

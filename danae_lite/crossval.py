@@ -50,6 +50,11 @@ recording, mean over seeds (``rmse_seed_std``: their sample std, NaN with one se
 TRIAL_COLUMNS: tuple[str, ...] = ("split", "protocol", "group", "test", "method", "causal", *broad.METRICS, "seeds")
 """Columns of :attr:`CrossValidation.trials` (``folds_broad.csv``): the BROAD benchmark's figures [deg]."""
 
+NO_HARM_COLUMNS: tuple[str, ...] = ("split", "protocol", "group", "test", "quantity", "filter", "corrector",
+                                    "filter_value", "corrector_value", "change_pct")
+"""Columns of :meth:`CrossValidation.no_harm` (``no_harm.csv``): a corrector against the filter
+it corrects on one held-out recording; values in the unit the ``quantity`` names."""
+
 
 @dataclass(frozen=True)
 class Split:
@@ -184,6 +189,58 @@ class CrossValidation:
             rows.append(row)
         return pd.DataFrame(rows).set_index("method")
 
+    def corrections(self) -> dict[str, str]:
+        """Each method that corrects another method of this cross-validation's output, mapped
+        to that method: ``"danae-res[vqf]" -> "vqf"`` (leaderboard names ``<family>[<filter>]``
+        whose filter ran too)."""
+        out = {}
+        for m in self.methods:
+            if m.endswith("]") and "[" in m:
+                source = m[m.index("[") + 1:-1]
+                if source in self.methods:
+                    out[m] = source
+        return out
+
+    def no_harm(self, pairs: Mapping[str, str] | None = None, samples: str = "clean") -> pd.DataFrame:
+        """Does a correction do harm? Per pair ``corrector -> filter`` (default
+        :meth:`corrections`), split and held-out recording, :data:`NO_HARM_COLUMNS`: the filter's
+        and the corrector's value of each ``quantity`` on the same recording — the RMSE [rad] of
+        roll, pitch and yaw on ``samples`` and, for BROAD, the benchmark's figures [deg] — and the
+        ``change_pct`` (:func:`danae_lite.metrics.reduction_pct`; negative: the correction made
+        that recording worse). Values are means over seeds; an angle the filter does not
+        estimate (NaN) has no row."""
+        pairs = dict(self.corrections() if pairs is None else pairs)
+        missing = [m for pair in pairs.items() for m in pair if m not in self.methods]
+        if missing:
+            raise KeyError(f"not in this cross-validation: {', '.join(missing)} (methods: {', '.join(self.methods)})")
+        rows: list[dict[str, Any]] = []
+        keys = ["split", "protocol", "group", "test"]
+        t = self._select(samples, None)
+        tables = [(t.assign(quantity=t.angle + " RMSE [rad]"), "rmse")]
+        if not self.trials.empty:
+            for k in broad.METRICS:
+                name = k.replace("_rmse_deg", "") + " RMSE [deg]"
+                tables.append((self.trials.assign(quantity=name, value=self.trials[k]), "value"))
+        for table, col in tables:
+            for corrector, source in pairs.items():
+                f = table[table.method == source].set_index([*keys, "quantity"])[col]
+                c = table[table.method == corrector].set_index([*keys, "quantity"])[col]
+                both = pd.DataFrame({"filter_value": f, "corrector_value": c}).dropna()
+                for idx, r in both.iterrows():
+                    rows.append({**dict(zip([*keys, "quantity"], idx)), "filter": source, "corrector": corrector,
+                                 "filter_value": float(r.filter_value), "corrector_value": float(r.corrector_value),
+                                 "change_pct": float(metrics.reduction_pct(r.corrector_value, r.filter_value))})
+        return pd.DataFrame(rows, columns=list(NO_HARM_COLUMNS))
+
+    def no_harm_summary(self, pairs: Mapping[str, str] | None = None, samples: str = "clean") -> pd.DataFrame:
+        """:meth:`no_harm` per corrector and quantity: the number of held-out recordings, on how
+        many the correction is worse than its filter (``worse_on``), the mean and the worst
+        (lowest) ``change_pct``; rows ``(corrector, filter, quantity)``."""
+        nh = self.no_harm(pairs, samples)
+        return nh.groupby(["corrector", "filter", "quantity"], sort=False).agg(
+            recordings=("change_pct", "size"), worse_on=("change_pct", lambda c: int((c < 0).sum())),
+            mean_change_pct=("change_pct", "mean"), worst_change_pct=("change_pct", "min"))
+
     def _select(self, samples: str, protocol: str | None) -> pd.DataFrame:
         t = self.rows[self.rows.samples == samples]
         if protocol is not None:
@@ -194,8 +251,9 @@ class CrossValidation:
 
     def write(self, out_dir: str | os.PathLike[str]) -> dict[str, Path]:
         """``folds.csv`` (every row), ``folds_summary.csv`` (:meth:`summary` per protocol and
-        group, clean samples), ``folds_params.csv``, ``folds.json`` and, for BROAD,
-        ``folds_broad.csv``; returns the paths."""
+        group, clean samples), ``folds_params.csv``, ``folds.json``, for BROAD
+        ``folds_broad.csv`` and, when a method corrects another (:meth:`corrections`),
+        ``no_harm.csv`` (:meth:`no_harm`); returns the paths."""
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         paths = {"rows": out / "folds.csv", "summary": out / "folds_summary.csv", "params": out / "folds_params.csv",
@@ -211,6 +269,9 @@ class CrossValidation:
         if not self.trials.empty:
             paths["broad"] = out / "folds_broad.csv"
             self.trials.to_csv(paths["broad"], index=False, float_format="%.6g")
+        if self.corrections():
+            paths["no_harm"] = out / "no_harm.csv"
+            self.no_harm().to_csv(paths["no_harm"], index=False, float_format="%.6g")
         paths["json"].write_text(json.dumps({"experiment": self.name, "data": self.data, "seeds": list(self.seeds),
                                              "methods": self.methods, "splits": sorted(set(self.rows.split)),
                                              "seconds": self.seconds}, indent=2) + "\n")
@@ -306,7 +367,10 @@ def run_splits(
     jobs : worker processes: over splits, or over one split's networks when there is one split.
     progress : progress bar over the splits.
     """
-    from tqdm.auto import tqdm
+    if progress:  # the notebook widget when available
+        from tqdm.auto import tqdm
+    else:
+        from tqdm import tqdm
 
     if not splits:
         raise ValueError("no splits to run")

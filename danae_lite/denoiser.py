@@ -34,6 +34,10 @@ networks or the training loop (:func:`danae_lite.networks.train_networks`):
   recording does not transfer to the next. ``g = 0`` falls back to the filter. With a single
   training recording, the validation tails are all there is, and ``gate_data`` says so.
   Nothing of the test recordings takes part.
+* **Angles the filter does not estimate** (RIANN gives no yaw: NaN throughout): their filter
+  channels enter the network as a constant, their target is zero, their gain is 0 and the
+  output keeps the filter's NaN ("no estimate"); nothing is guessed. A filter whose estimate is
+  NaN on only some samples of an angle is refused, naming the recording and the angle.
 
 Frames and units: every angle is ZYX Euler (roll, pitch, yaw) [rad] in the ground-truth
 frame of the aligned recordings; yaw differences are wrapped to [-pi, pi).
@@ -135,6 +139,7 @@ class DanaeRes(Method):
     gate_results : (inner fold, seed) -> the network trained without that fold's recordings.
     gains : seed -> (3,) gain per angle.
     gate_data : what the gate was chosen on ("held-out training recordings" or "validation tails").
+    missing : (3,) bool, the angles ``source`` gives no estimate of (corrected: never).
     params : the settings, the chosen gains and the gate's RMSE per gain and angle.
     """
 
@@ -167,13 +172,31 @@ class DanaeRes(Method):
         return replace(self.ctx.train_config, seed=int(seed), normalize="none", **self.overrides)
 
     def features(self, rec: Recording, est: Array) -> Array:
-        """Input channels (N, C) for the aligned recording ``rec`` and the filter's estimate ``est`` (N, 3) [rad]."""
+        """Input channels (N, C) for the aligned recording ``rec`` and the filter's estimate ``est`` (N, 3) [rad]
+        (an angle in :attr:`missing` enters as the constant 0 rad)."""
+        est = np.where(self.missing, 0.0, np.asarray(est, dtype=float))
         if self.inputs == "multi":
             return multi_input(rec, est, self.ctx.alignment.north_yaw)
         return to_circle(est)
 
     def _target(self, rec: Recording, est: Array) -> Array:
-        return filter_error(est, rec.euler) if self.residual else to_circle(rec.euler)
+        if self.residual:
+            return np.where(self.missing, 0.0, filter_error(est, rec.euler))
+        return to_circle(rec.euler)
+
+    def _missing_angles(self, est: dict[str, Array]) -> NDArray[np.bool_]:
+        """(3,) True where the source gives no estimate of an angle on any training recording;
+        an angle estimated on some samples only is an error naming the recording."""
+        finite = {n: np.isfinite(e).all(axis=0) for n, e in est.items()}
+        none = {n: ~np.isfinite(e).any(axis=0) for n, e in est.items()}
+        missing = np.all(list(none.values()), axis=0)
+        for n in est:
+            for k, a in enumerate(("roll", "pitch", "yaw")):
+                if not (finite[n][k] or missing[k]):
+                    raise ValueError(f"{self.name}: {self.source}'s {a} on training recording {n!r} is NaN "
+                                     "or inf on some samples only; expected a finite estimate throughout "
+                                     "(or none at all, as RIANN's yaw)")
+        return missing
 
     def _output(self, est: Array, y: Array, gains: Array) -> Array:
         """Filter estimate + gain x correction (residual) or a gain-weighted blend (angles)."""
@@ -214,7 +237,8 @@ class DanaeRes(Method):
         for r in recs:
             xr = x[r.name]
             if self.offset_rad > 0:
-                xr = shift_levels(xr, level_offsets(len(r), r.fs, self.offset_rad, rng), self.inputs)
+                offsets = np.where(self.missing, 0.0, level_offsets(len(r), r.fs, self.offset_rad, rng))
+                xr = shift_levels(xr, offsets, self.inputs)
             xs.append((xr - scaling["in_mean"]) / scaling["in_std"])
             ys.append((y[r.name] - scaling["out_mean"]) / scaling["out_std"])
         return xs, ys, [self.ctx.clean[r.name] for r in recs], scaling
@@ -227,6 +251,7 @@ class DanaeRes(Method):
         cfg = self.config(ctx.seeds[0])
         by_name = {r.name: r for r in ctx.train}
         est = {r.name: self.base.predict(r)[0] for r in ctx.train}
+        self.missing = self._missing_angles(est)
         x = {r.name: self.features(r, est[r.name]) for r in ctx.train}
         y = {r.name: self._target(r, est[r.name]) for r in ctx.train}
         # the network for prediction ("joint"), and one per inner fold for the gate ("without-k")
@@ -273,15 +298,17 @@ class DanaeRes(Method):
             if count == 0:
                 raise ValueError(f"{self.name}: no clean sample to choose the gate on "
                                  "(set val_fraction > 0, give more training recordings, or gate=False)")
-            val_rmse = np.sqrt(sq / count)
-            self.gains[seed] = (np.array([GATE_GAINS[i] for i in val_rmse.argmin(0)]) if self.gate
-                                else np.ones(3))
+            val_rmse = np.sqrt(sq / count)  # NaN for an angle the filter does not estimate
+            gains = (np.array([GATE_GAINS[i] for i in np.nan_to_num(val_rmse, nan=0.0).argmin(0)])
+                     if self.gate else np.ones(3))
+            self.gains[seed] = np.where(self.missing, 0.0, gains)
             scores[seed] = {a: val_rmse[:, k].tolist() for k, a in enumerate(("roll", "pitch", "yaw"))}
         self.params = {"source": self.source, "inputs": list(self.channels()), "residual": self.residual,
                        "offset_rad": self.offset_rad, "gate": self.gate, "gate_data": self.gate_data,
                        "gate_folds": [list(f) for f in folds], "arch": cfg.arch, "window": cfg.window,
                        "seeds": list(ctx.seeds), "gate_gains": list(GATE_GAINS),
                        "gains": {s: g.tolist() for s, g in self.gains.items()},
+                       "missing": [a for a, m in zip(("roll", "pitch", "yaw"), self.missing) if m],
                        "gate_rmse_rad": scores, "source_params": self.base.params}
         return self
 

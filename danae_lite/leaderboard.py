@@ -154,30 +154,49 @@ class Leaderboard:
             "seconds": {k: float(v) for k, v in self.seconds.items()},
         }
 
-    def plot(self, ax: "plt.Axes | None" = None, samples: str = "clean") -> "plt.Figure":
-        """Grouped bars: RMSE [rad] per method and angle (log scale), on ``samples``."""
+    def plot(self, samples: str = "clean") -> "plt.Figure":
+        """RMSE [rad] per method on ``samples``: one horizontal-bar panel per angle on a linear
+        axis (roll and pitch share theirs), bars in the method palette
+        (:func:`danae_lite.plots.method_color`), hatched where the method looks ahead (not
+        causal), each bar labelled with its value; a method without an estimate of an angle
+        is labelled so instead of drawn."""
         import matplotlib.pyplot as plt
+        from matplotlib.patches import Patch
 
-        from .plots import COLORS, use_style
+        from .plots import angle_label, method_color, use_style
 
         use_style()
-        w = self.wide("rmse", samples)
-        if ax is None:
-            _, ax = plt.subplots(figsize=(10, 4.2))
-        x = np.arange(len(w))
-        width = 0.8 / len(w.columns)
-        colors = [COLORS.get("truth", "C0"), COLORS.get("kf", "C1"), COLORS.get("danae", "C2")]
-        for j, a in enumerate(w.columns):
-            ax.bar(x + (j - (len(w.columns) - 1) / 2) * width, w[a].astype(float), width, label=a,
-                   color=colors[j % len(colors)])
-        ax.set_xticks(x, w.index, rotation=30, ha="right")
-        ax.set_yscale("log")
-        ax.set_ylabel(f"RMSE [rad], {samples} samples")
-        ax.set_title(f"{self.experiment.name} ({self.experiment.data}): test {', '.join(r.name for r in self.experiment.test)}")
-        ax.legend(title="angle", loc="upper left", bbox_to_anchor=(1.0, 1.0))
-        ax.grid(True, axis="y", which="both", alpha=0.3)
-        ax.figure.tight_layout()
-        return ax.figure
+        w = self.wide("rmse", samples).astype(float)
+        y = np.arange(len(w))
+        fig, axes = plt.subplots(1, len(w.columns), figsize=(10, 1.2 + 0.3 * len(w)),
+                                 sharey=True, squeeze=False)
+        tilt = [a for a in ("roll", "pitch") if a in w.columns]
+        tilt_max = 1.3 * np.nanmax(w[tilt].to_numpy()) if tilt else np.nan
+        for ax, a in zip(axes[0], w.columns):
+            bars = ax.barh(y, w[a].fillna(0.0), color=[method_color(m) for m in w.index],
+                           edgecolor="black", linewidth=0.4)
+            for bar, m, v in zip(bars, w.index, w[a]):
+                if not self.methods[m].causal:
+                    bar.set_hatch("///")
+                label = f" {v:.3f}" if np.isfinite(v) else " no estimate"
+                ax.text(v if np.isfinite(v) else 0.0, bar.get_y() + bar.get_height() / 2,
+                        label, va="center", fontsize=7)
+            right = tilt_max if a in tilt else 1.3 * np.nanmax(w[a])
+            ax.set_xlim(0, right if np.isfinite(right) and right > 0 else 1.0)
+            ax.set_title(angle_label(a).split(" [")[0])
+            ax.set_xlabel(f"RMSE [rad], {samples} samples")
+            ax.grid(True, axis="x", alpha=0.3)
+            ax.grid(False, axis="y")
+        axes[0, 0].set_yticks(y, w.index)
+        axes[0, 0].invert_yaxis()
+        fig.legend(handles=[Patch(facecolor="white", edgecolor="black", label="causal"),
+                            Patch(facecolor="white", edgecolor="black", hatch="///",
+                                  label="looks ahead (not causal)")],
+                   loc="lower center", ncol=2, bbox_to_anchor=(0.5, 0.0))
+        exp = self.experiment
+        fig.suptitle(f"{exp.name} ({exp.data}): test {', '.join(r.name for r in exp.test)}")
+        fig.tight_layout(rect=(0, 0.06, 1, 1))
+        return fig
 
     def write(self, out_dir: str | os.PathLike[str]) -> dict[str, Path]:
         """Write ``leaderboard.csv``, ``leaderboard.json``, ``leaderboard.png``,

@@ -219,6 +219,27 @@ def test_leaderboard_folds_simulated(tmp_path: Path, capsys: pytest.CaptureFixtu
     summary = pd.read_csv(out / "folds_summary.csv")
     assert set(summary.method) == {"constant", "paper_kf", "danae"}
     assert "mean and std over held-out recordings" in stdout
+    assert not (out / "no_harm.csv").exists()  # nothing here corrects another method
+
+
+def test_leaderboard_folds_writes_the_no_harm_table_of_a_denoiser_beside_its_filter(
+        tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    out = tmp_path / "nh"
+    code, stdout, err = run(["leaderboard", "--folds", "--experiment", "broad", *TINY, "--methods", "paper_kf",
+                             "danae-res[paper_kf]", "--out", str(out)], capsys)
+    assert code == 0, err
+    nh = pd.read_csv(out / "no_harm.csv")
+    trials = pd.read_csv(out / "folds_broad.csv").set_index(["test", "method"])
+    assert set(nh.quantity) == {"roll RMSE [rad]", "pitch RMSE [rad]", "yaw RMSE [rad]", "total RMSE [deg]",
+                                "heading RMSE [deg]", "inclination RMSE [deg]"}
+    total = nh[nh.quantity == "total RMSE [deg]"].set_index("test")
+    assert len(total) == trials.index.get_level_values("test").nunique()
+    for test, r in total.iterrows():  # the benchmark's figure of each held-out trial, both methods
+        assert r.filter_value == pytest.approx(trials.loc[(test, "paper_kf"), "total_rmse_deg"], rel=1e-5)
+        assert r.corrector_value == pytest.approx(trials.loc[(test, "danae-res[paper_kf]"), "total_rmse_deg"],
+                                                  rel=1e-5)
+        assert r.change_pct == pytest.approx(100 * (1 - r.corrector_value / r.filter_value), abs=1e-3)  # 6 digits
+    assert "No harm?" in stdout and "worse_on" in stdout
 
 
 def test_folds_usage_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -103,3 +103,57 @@ def test_broad_split_scores_the_benchmark_metric_on_simulated_stand_ins(motions)
     assert s.loc["paper_kf", "n"] == 2
     assert s.loc["paper_kf", "total_rmse_deg"] == pytest.approx(
         cv.trials[cv.trials.method == "paper_kf"].total_rmse_deg.mean())
+
+
+@pytest.fixture(scope="module")
+def cv_res(motions):
+    splits = crossval.leave_one_out(motions["handheld"], "handheld")
+    return crossval.run_splits(splits, name="oxiod", data="simulated",
+                               methods=("paper_kf", "riann", "danae-res[paper_kf]", "danae-res[riann]"),
+                               seeds=(0,), train_config=TrainConfig(max_steps=3, num_threads=1), progress=False)
+
+
+def test_no_harm_pairs_each_correction_with_its_filter_recording_by_recording(cv_res, tmp_path):
+    assert cv_res.corrections() == {"danae-res[paper_kf]": "paper_kf", "danae-res[riann]": "riann"}
+    nh = cv_res.no_harm()
+    assert list(nh.columns) == list(crossval.NO_HARM_COLUMNS)
+    # 3 held-out recordings x 3 angles behind the paper's KF, x 2 behind RIANN (no yaw estimate)
+    assert nh.groupby("filter").size().to_dict() == {"paper_kf": 9, "riann": 6}
+    for source in ("paper_kf", "riann"):
+        for a in ("roll", "pitch"):
+            per = cv_res.per_recording(a)
+            got = nh[(nh["filter"] == source) & (nh.quantity == f"{a} RMSE [rad]")].set_index("test")
+            ref = per[[source, f"danae-res[{source}]"]].droplevel("group")
+            np.testing.assert_allclose(got.filter_value, ref[source].loc[got.index])
+            np.testing.assert_allclose(got.corrector_value, ref[f"danae-res[{source}]"].loc[got.index])
+            np.testing.assert_allclose(got.change_pct, 100 * (1 - got.corrector_value / got.filter_value))
+    s = cv_res.no_harm_summary()
+    row = s.loc[("danae-res[paper_kf]", "paper_kf", "pitch RMSE [rad]")]
+    sel = nh[(nh.corrector == "danae-res[paper_kf]") & (nh.quantity == "pitch RMSE [rad]")]
+    assert row.recordings == 3 and row.worse_on == int((sel.change_pct < 0).sum())
+    assert row.worst_change_pct == sel.change_pct.min()
+    assert "no_harm" in cv_res.write(tmp_path)
+    assert len(pd.read_csv(tmp_path / "no_harm.csv")) == len(nh)
+    with pytest.raises(KeyError, match="vqf"):
+        cv_res.no_harm({"danae-res[vqf]": "vqf"})
+
+
+def test_no_harm_on_broad_trials_uses_the_benchmark_figures_in_degrees():
+    keys = {"split": "s", "protocol": "transfer", "group": "tapping", "causal": True, "seeds": 1}
+    rows = pd.DataFrame([{**keys, "test": t, "method": m, "samples": "clean", "angle": a, "rmse": v,
+                          "mean_dev": 0.0, "max_dev": 0.0, "rmse_seed_std": np.nan, "n": 10}
+                         for t in ("25", "26") for m, v in (("vqf", 0.02), ("danae-res[vqf]", 0.01))
+                         for a in ("roll", "pitch", "yaw")])
+    trials = pd.DataFrame([{**keys, "test": t, "method": m, "total_rmse_deg": tot, "heading_rmse_deg": tot,
+                            "inclination_rmse_deg": 1.0}
+                           for t, m, tot in (("25", "vqf", 2.0), ("25", "danae-res[vqf]", 3.0),
+                                             ("26", "vqf", 4.0), ("26", "danae-res[vqf]", 3.0))])
+    cv = crossval.CrossValidation("broad", "real", rows, trials, pd.DataFrame(), {"total": 0.0},
+                                  methods=["vqf", "danae-res[vqf]"])
+    nh = cv.no_harm().set_index(["test", "quantity"])
+    assert nh.loc[("25", "total RMSE [deg]"), "change_pct"] == pytest.approx(-50.0)
+    assert nh.loc[("26", "total RMSE [deg]"), "change_pct"] == pytest.approx(25.0)
+    assert nh.loc[("25", "roll RMSE [rad]"), "change_pct"] == pytest.approx(50.0)
+    s = cv.no_harm_summary().loc[("danae-res[vqf]", "vqf")]
+    assert s.loc["total RMSE [deg]", "worse_on"] == 1 and s.loc["inclination RMSE [deg]", "worse_on"] == 0
+    assert s.loc["total RMSE [deg]", "worst_change_pct"] == pytest.approx(-50.0)

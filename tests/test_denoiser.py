@@ -187,3 +187,41 @@ def test_cli_runs_the_recommended_denoiser_by_name(tmp_path, capsys, monkeypatch
     assert rows and all(",True," in r for r in rows)  # causal: a causal net behind a causal filter
     code = cli.main(["leaderboard", "--methods", "danae-res[danae]", "--out", str(tmp_path / "x")])
     assert code == 2 and "invalid choice" in capsys.readouterr().err
+
+
+def test_a_filter_without_yaw_is_corrected_on_roll_and_pitch_only():
+    # RIANN estimates no heading (NaN yaw): DANAE-res keeps that NaN, corrects the rest
+    recs = [simulate("handheld", duration=15.0, seed=s, name=f"ri-{s}") for s in range(3)]
+    exp = Experiment("oxiod", "simulated", recs[1:], recs[:1], "riann")
+    m = DanaeRes("riann", hidden=16)
+    board = run_leaderboard(exp, methods=["riann"], seeds=(0,), progress=False, extra=[m],
+                            train_config=TrainConfig(max_steps=10, num_threads=1))
+    np.testing.assert_array_equal(m.missing, [False, False, True])
+    assert m.params["missing"] == ["yaw"] and m.gains[0][2] == 0.0
+    test = board.alignment.apply(exp.test[0])
+    est, out = m.base.predict(test)[0], m.predict(test)[0]
+    assert np.isnan(est[:, 2]).all() and np.isnan(out[:, 2]).all()
+    assert np.isfinite(out[:, :2]).all()
+    # the filter's yaw channels are a constant (0 rad) and carry nothing
+    x = m.features(test, est)
+    np.testing.assert_allclose(x[:, 2:4], np.tile([0.0, 1.0], (len(test), 1)))
+    # roll and pitch: filter + gain x the network's correction, as for any filter
+    corr = m._run_network(m.results[0], x)
+    np.testing.assert_allclose(out[:, :2], est[:, :2] + m.gains[0][:2] * corr[:, :2], atol=1e-12)
+    w = board.wide("rmse", "clean")
+    assert np.isnan(w.loc["danae-res[riann]", "yaw"]) and np.isfinite(w.loc["danae-res[riann]", "roll"])
+
+
+def test_an_estimate_missing_on_some_samples_only_is_refused_naming_the_recording():
+    m = DanaeRes("vqf")
+    m.name = "danae-res[vqf]"
+    est = {"good": np.zeros((5, 3)), "bad": np.zeros((5, 3))}
+    est["bad"][2, 1] = np.nan
+    with pytest.raises(ValueError, match=r"pitch on training recording 'bad'.*some samples only"):
+        m._missing_angles(est)
+    est["bad"][:, 1] = 0.0
+    est["good"][:, 2] = est["bad"][:, 2] = np.nan
+    np.testing.assert_array_equal(m._missing_angles(est), [False, False, True])
+    est["good"][:, 2] = 0.0   # yaw on one recording, none on the other: refused
+    with pytest.raises(ValueError, match="yaw on training recording 'bad'"):
+        m._missing_angles(est)

@@ -58,6 +58,34 @@ def test_clean_samples_exclude_ground_truth_glitches():
     assert int(b.table[b.table.samples == "clean"].n.iloc[0]) == len(test) - 1
 
 
+def test_plot_draws_the_table_linear_in_method_colours_hatching_what_looks_ahead(board):
+    import matplotlib.colors as mcolors
+    import matplotlib.pyplot as plt
+
+    from danae_lite.plots import method_color
+
+    fig = board.plot("clean")
+    w = board.wide("rmse", "clean").astype(float)
+    axes = fig.axes
+    assert [ax.get_title().split()[0] for ax in axes] == ["roll", "pitch", "yaw"]
+    for ax, a in zip(axes, w.columns):
+        assert ax.get_xscale() == "linear"
+        assert "RMSE [rad]" in ax.get_xlabel()
+        bars = ax.patches
+        assert len(bars) == len(w)
+        for bar, m in zip(bars, w.index):
+            want = w.loc[m, a]
+            assert bar.get_width() == pytest.approx(want if np.isfinite(want) else 0.0)
+            assert mcolors.to_hex(bar.get_facecolor()) == method_color(m)
+            assert bool(bar.get_hatch()) == (not board.methods[m].causal)
+        texts = [t.get_text().strip() for t in ax.texts]
+        assert texts == [f"{v:.3f}" if np.isfinite(v) else "no estimate" for v in w[a]]
+        assert ax.get_xlim()[1] >= np.nanmax(w[a])
+    # roll and pitch share one scale
+    assert axes[0].get_xlim() == axes[1].get_xlim()
+    plt.close(fig)
+
+
 def test_write_produces_csv_json_png(board, tmp_path):
     paths = board.write(tmp_path)
     csv = pd.read_csv(paths["csv"])
