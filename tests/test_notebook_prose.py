@@ -18,16 +18,6 @@ ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("[0-9][0-9]_*.ipynb"))
 PAPER = ROOT.parent / "shared" / "reference" / "danae_metrosea2020.tex"
 MAX_CODE_LINE = 88
-# Chapters whose executed outputs still come from the version without a summary, exercises and
-# 88-column code: their rewrite must be re-executed in full before these checks apply.
-NOT_YET_REWRITTEN = {"05_baselines_leaderboard.ipynb", "06_beyond_the_paper.ipynb"}
-
-
-def _layout_params():
-    mark = pytest.mark.xfail(strict=True, reason="the executed chapter predates its rewrite "
-                             "(summary, exercises, 88-column code)")
-    return [pytest.param(p, id=p.name, marks=mark if p.name in NOT_YET_REWRITTEN else ())
-            for p in NOTEBOOKS]
 
 GLUE_ROLE = re.compile(r"\{glue(?::\w+)?\}`[^`]*`")
 INLINE_CODE = re.compile(r"`[^`]*`")
@@ -144,7 +134,7 @@ def test_the_glue_rule_catches_a_typed_result_and_accepts_a_glued_one(tmp_path):
     assert [p.split(" (")[0] for p in problems] == ['cell 1: "0.62"', 'cell 3: "62"'], problems
 
 
-@pytest.mark.parametrize("path", _layout_params())
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
 def test_code_lines_fit_the_page(path):
     long = [(i, n + 1, len(line)) for i, c in enumerate(_cells(path)) if c["cell_type"] == "code"
             for n, line in enumerate("".join(c["source"]).splitlines()) if len(line) > MAX_CODE_LINE]
@@ -156,7 +146,7 @@ EXERCISE = re.compile(r"^### Exercise (\d+)\.(\d+)\b", re.M)
 SOLUTION = re.compile(r"^:::+\{admonition\} Solution.*?\n:class: dropdown", re.M)
 
 
-@pytest.mark.parametrize("path", _layout_params())
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
 def test_every_chapter_ends_with_a_summary_and_exercises_with_solutions(path):
     chapter = int(path.name[:2])
     md = ["".join(c["source"]) for c in _cells(path) if c["cell_type"] == "markdown"]

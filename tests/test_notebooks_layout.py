@@ -35,6 +35,16 @@ def test_first_cell_outputs_and_errors(path):
     assert not any(o.get("output_type") == "error" for c in code for o in c.get("outputs", [])), path.name
 
 
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_no_stored_output_is_a_warning_on_stderr(path):
+    # a library warning (e.g. tqdm's "IProgress not found") would show in the HTML book, with the
+    # executing machine's paths, as if it concerned the reader
+    nb = json.loads(path.read_text())
+    stderr = [(i, "".join(o.get("text", ""))[:120]) for i, c in enumerate(nb["cells"]) if c["cell_type"] == "code"
+              for o in c.get("outputs", []) if o.get("output_type") == "stream" and o.get("name") == "stderr"]
+    assert not stderr, f"{path.name}: stderr output stored in (cell, text): {stderr}"
+
+
 def stale_reason(nb: dict, stem: str) -> str | None:
     """Why a chapter's stored outputs cannot be trusted to match its code, or None when they can.
 
