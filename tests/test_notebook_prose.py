@@ -161,3 +161,34 @@ def test_every_chapter_ends_with_a_summary_and_exercises_with_solutions(path):
     bodies = pieces[2::3]
     for (a, b), body in zip(found, bodies):
         assert SOLUTION.search(body), f"{path.name}: exercise {a}.{b} has no solution behind a toggle"
+
+
+GLUE_KEY = re.compile(r"\{glue(?::\w+)?\}`([A-Za-z_][A-Za-z0-9_]*)")
+
+
+def missing_glue_keys(path: Path) -> list[str]:
+    """'cell N: key' for each ``{glue...}`key``` in the prose that no stored output glued (the
+    book would render it as a warning, and ``-W`` fails the build)."""
+    cells = _cells(path)
+    glued = {o.get("metadata", {}).get("scrapbook", {}).get("name")
+             for c in cells if c["cell_type"] == "code" for o in c.get("outputs", [])}
+    return [f"cell {i}: {key}" for i, c in enumerate(cells) if c["cell_type"] == "markdown"
+            for key in GLUE_KEY.findall("".join(c["source"])) if key not in glued]
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_every_glued_name_in_the_prose_is_in_the_stored_outputs(path):
+    missing = missing_glue_keys(path)
+    assert not missing, f"{path.name}: glue references without a stored glue output:\n" + "\n".join(missing)
+
+
+def test_the_glue_key_check_finds_a_reference_without_output(tmp_path):
+    glued = {"output_type": "display_data", "data": {"text/plain": ["1"]},
+             "metadata": {"scrapbook": {"name": "ch9_kept", "mime_prefix": ""}}}
+    nb = {"cells": [
+        {"cell_type": "code", "source": ["glue('ch9_kept', 1)"], "outputs": [glued]},
+        {"cell_type": "markdown", "source": ["{glue:text}`ch9_kept:.1f` and {glue:md}`ch9_gone`."]},
+    ]}
+    path = tmp_path / "99_probe.ipynb"
+    path.write_text(json.dumps(nb))
+    assert missing_glue_keys(path) == ["cell 1: ch9_gone"]
