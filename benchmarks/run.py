@@ -91,6 +91,32 @@ def cpu_model() -> str:
     return platform.processor() or platform.machine() or "unknown"
 
 
+#: variables that make oneDNN, ATen's vectorised kernels and MKL use AVX2 code only (they
+#: must be set before torch is imported, so the AVX2 path runs in a child process)
+AVX2_PATH_ENV = {"ONEDNN_MAX_CPU_ISA": "AVX2", "ATEN_CPU_CAPABILITY": "avx2", "MKL_ENABLE_INSTRUCTIONS": "AVX2"}
+
+
+def cpu_flags() -> set[str]:
+    """The CPU's feature flags from /proc/cpuinfo (empty where there is none)."""
+    try:
+        with open("/proc/cpuinfo", encoding="utf-8", errors="replace") as f:
+            for line in f:
+                if line.lower().startswith("flags"):
+                    return set(line.split(":", 1)[1].split())
+    except OSError:
+        pass
+    return set()
+
+
+def cpu_isa() -> dict[str, Any]:
+    """The instruction sets the CPU has and the one this process's torch kernels use."""
+    flags = cpu_flags()
+    has = "AVX-512" if "avx512f" in flags else "AVX2" if "avx2" in flags else "other" if flags else "unknown"
+    forced = all(os.environ.get(k) == v for k, v in AVX2_PATH_ENV.items())
+    return {"cpu": has, "torch_capability": torch.backends.cpu.get_cpu_capability(),
+            "path": "AVX2 (forced)" if forced else "native", "avx2_forced": forced}
+
+
 def usable_cores() -> int:
     try:
         return len(os.sched_getaffinity(0))
@@ -127,6 +153,7 @@ def machine_info() -> dict[str, Any]:
         "cpu_count": os.cpu_count(),
         "usable_cores": usable_cores(),
         "cpu_model": cpu_model(),
+        "isa": cpu_isa(),
         "ram_gib": ram_gib(),
         "torch_threads_default": _default_threads(),
         "cuda_available": bool(torch.cuda.is_available()),
@@ -564,6 +591,52 @@ def table(r: dict[str, Any]) -> str:
     return "\n".join([fmt(head), line, *(fmt(row) for row in rows)])
 
 
+#: the figures shown side by side for the native and the AVX2 path: (key, label, format)
+HEADLINE = [
+    ("matmul_gflops", "float32 matmul peak [GFLOP/s]", "{:,.0f}"),
+    ("train_gflops", "paper network training [GFLOP/s]", "{:,.1f}"),
+    ("train_over_matmul_peak", "  share of the matmul peak", "{:.2f}"),
+    ("train_bare_windows_per_s", "bare training step, batch 16 [windows/s]", "{:,.0f}"),
+    ("paper_epoch_50k_s", "paper epoch, 50k windows [s]", "{:.1f}"),
+    ("predict_100k_s", "predict over 100k samples [s]", "{:.2f}"),
+    ("danae_infer_ms_per_sample", "paper net streaming [ms/sample]", "{:.2f}"),
+    ("denoiser_stream_ms_per_sample", "DANAE-res streaming [ms/sample]", "{:.3f}"),
+    ("denoiser_stream_p99_ms", "  p99 [ms/sample]", "{:.3f}"),
+]
+
+
+def side_by_side(paths: dict[str, dict[str, Any]]) -> str:
+    """The headline figures of each instruction-set path in one column each."""
+    names = list(paths)
+    rows = [("figure", *names)]
+    for key, label, fmt in HEADLINE:
+        rows.append((label, *(fmt.format(p[key]) if p.get(key) is not None else "—" for p in paths.values())))
+    w = [max(len(r[i]) for r in rows) for i in range(len(rows[0]))]
+    lines = ["  ".join(c.ljust(wi) if i == 0 else c.rjust(wi) for i, (c, wi) in enumerate(zip(r, w))) for r in rows]
+    return "\n".join([lines[0], "  ".join("-" * wi for wi in w), *lines[1:]])
+
+
+def run_avx2_path(argv: Sequence[str]) -> dict[str, Any]:
+    """Run this benchmark again in a child process restricted to AVX2 (:data:`AVX2_PATH_ENV`)."""
+    import subprocess
+    import tempfile
+
+    with tempfile.TemporaryDirectory() as tmp:
+        out = Path(tmp) / "avx2.json"
+        cmd = [sys.executable, str(Path(__file__).resolve()), *argv, "--path", "native", "--json", str(out)]
+        subprocess.run(cmd, env={**os.environ, **AVX2_PATH_ENV}, check=True)
+        return json.loads(out.read_text(encoding="utf-8"))
+
+
+def _child_argv(args: argparse.Namespace) -> list[str]:
+    argv = ["--quick"] if args.quick else []
+    if args.device:
+        argv += ["--device", args.device]
+    if args.threads is not None:
+        argv += ["--threads", str(args.threads)]
+    return argv
+
+
 def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     parser = argparse.ArgumentParser(description=(__doc__ or "").splitlines()[0])
     parser.add_argument("--json", metavar="FILE", help="write the results to this JSON file")
@@ -572,6 +645,10 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
                         help="device for DANAE training/inference (default: cuda when available, else cpu)")
     parser.add_argument("--threads", type=int, default=None,
                         help="torch CPU threads (default: torch's own, every physical core)")
+    parser.add_argument("--path", choices=("both", "native"), default="both",
+                        help="'both' (default): on a CPU with AVX-512, run everything a second time with the "
+                             "AVX2 code paths forced (ONEDNN_MAX_CPU_ISA, ATEN_CPU_CAPABILITY, "
+                             "MKL_ENABLE_INSTRUCTIONS) and show the two side by side; 'native': this CPU's own path only")
     args = parser.parse_args(argv)
     if args.threads is not None:
         if args.threads < 1:
@@ -584,8 +661,11 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
     # CPU always (the reference machine has no GPU); CUDA too when present, unless --device chose one
     devices = [device] if args.device else (["cuda", "cpu"] if device == "cuda" else ["cpu"])
     mach = machine_info()
+    isa = mach["isa"]
     log(f"DANAE benchmarks{' (quick)' if args.quick else ''}: python {mach['python']}, torch {mach['torch']}, "
         f"{mach['usable_cores']} cores, {mach['cpu_model']}, DANAE device {device_label(device)}")
+    log(f"instruction sets: the CPU has {isa['cpu']}; torch kernels use {isa['torch_capability']} "
+        f"({isa['path']} path)")
 
     t0 = time.perf_counter()
     rec = simulate("handheld", duration=sz["duration"], seed=0)
@@ -632,9 +712,18 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         "inference": ires,
     }
     report.update(summary(report))
-    report["total_wall_s"] = time.perf_counter() - t_start
 
     log("\n" + table(report))
+    if args.path == "both" and isa["cpu"] == "AVX-512" and not isa["avx2_forced"]:
+        log("\n[AVX2 path] the same benchmarks with AVX2 code only (a child process)")
+        child = run_avx2_path(_child_argv(args))
+        report["avx2_path"] = {k: child.get(k) for k, *_ in HEADLINE} | {"machine": child["machine"]}
+    paths = {f"{isa['torch_capability']} ({isa['path']})": report}
+    if "avx2_path" in report:
+        paths["AVX2 (forced)"] = report["avx2_path"]
+    report["paths"] = {name: {k: p.get(k) for k, *_ in HEADLINE} for name, p in paths.items()}
+    log("\n" + side_by_side(report["paths"]))
+    report["total_wall_s"] = time.perf_counter() - t_start
     log(f"\ntotal wall time: {report['total_wall_s']:.1f} s")
     out = clean(report)
     if args.json:

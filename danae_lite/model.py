@@ -43,6 +43,8 @@ import torch
 from torch import nn
 from torch.nn import functional as F
 
+from .gemm_conv import ChannelsLastConv1d, ChannelsLastConvTranspose1d
+
 __all__ = [
     "ARCHITECTURES",
     "DanaeBase",
@@ -101,11 +103,13 @@ class DanaeBase(nn.Module):
 
     # -- construction helpers -------------------------------------------------------------
     def _conv(self, c_in: int, c_out: int, k: int = 3, d: int = 1, p: int = 1) -> nn.Conv1d:
-        return nn.Conv1d(c_in, c_out, kernel_size=k, dilation=d if self.dilated else 1, padding=p)
+        """A convolution computed as a matrix product on channels-last activations
+        (:mod:`danae_lite.gemm_conv`; parameters as :class:`torch.nn.Conv1d`)."""
+        return ChannelsLastConv1d(c_in, c_out, kernel_size=k, dilation=d if self.dilated else 1, padding=p)
 
     def _convt(self, k: int = 3, d: int = 1, p: int = 1) -> nn.ConvTranspose1d:
         h = self.hidden
-        return nn.ConvTranspose1d(h, h, kernel_size=k, dilation=d if self.dilated else 1, padding=p)
+        return ChannelsLastConvTranspose1d(h, h, kernel_size=k, dilation=d if self.dilated else 1, padding=p)
 
     def _finish(self) -> None:
         """Authors' init (weights N(0, 0.02), default biases) and the minimum length."""
@@ -294,6 +298,7 @@ class DanaePaper(DanaeBase):
 
     def forward_net(self, x: torch.Tensor) -> torch.Tensor:
         relu = torch.relu
+        x = x.transpose(1, 2)  # the layers work channels-last: (batch, length, channels)
         e1 = relu(self.e1(x))
         e2 = relu(self.e2(e1))
         e3 = relu(self.e3(e2))
@@ -304,7 +309,7 @@ class DanaePaper(DanaeBase):
         c2 = relu(self.c2(self._add(t2, e2)))
         t3 = relu(self.t3(c2))
         c3 = relu(self.c3(self._add(t3, e1)))
-        return self.out(c3)
+        return self.out(c3).transpose(1, 2)
 
 
 class DanaeBig(DanaeBase):
@@ -382,6 +387,7 @@ class DanaeBig(DanaeBase):
 
     def forward_net(self, x: torch.Tensor) -> torch.Tensor:
         relu = torch.relu
+        x = x.transpose(1, 2)  # channels-last, as in DanaePaper
         e1 = relu(self.e1(x))
         e2 = relu(self.e2(e1))
         e3 = relu(self.e3(e2))
@@ -393,7 +399,7 @@ class DanaeBig(DanaeBase):
         c3 = relu(self.c3(self._add(relu(self.t3(c2)), e3)))
         c4 = relu(self.c4(self._add(relu(self.t4(c3)), e2)))
         c5 = relu(self.c5(self._add(relu(self.t5(c4)), e1)))
-        return self.out(c5)
+        return self.out(c5).transpose(1, 2)
 
 
 class DanaeCausal(DanaeBase):
@@ -586,6 +592,12 @@ def _describe_layer(m: nn.Module) -> str:
     )
 
 
+def _channels_first_shape(layer: nn.Module, out: torch.Tensor) -> tuple[int, int]:
+    """(channels, length) of one window's output, whatever layout the layer works in."""
+    channels_last = isinstance(layer, (ChannelsLastConv1d, ChannelsLastConvTranspose1d))
+    return (out.shape[2], out.shape[1]) if channels_last else (out.shape[1], out.shape[2])
+
+
 def layer_table(net: DanaeBase, length: int | None = None) -> pd.DataFrame:
     """One row per convolution: name, what it is applied to, settings, output shape, parameters.
 
@@ -604,7 +616,7 @@ def layer_table(net: DanaeBase, length: int | None = None) -> pd.DataFrame:
     shapes: dict[str, tuple[int, ...]] = {}
     hooks = [
         getattr(net, n).register_forward_hook(
-            lambda mod, inp, out, n=n: shapes.__setitem__(n, tuple(out.shape[1:]))
+            lambda mod, inp, out, n=n: shapes.__setitem__(n, _channels_first_shape(mod, out))
         )
         for n in names
     ]

@@ -192,7 +192,16 @@ def test_bad_inputs_and_threads_restored():
 # --- (c) the receptive field --------------------------------------------------------------
 
 def test_receptive_field_boundary():
+    """The oldest input in the receptive field changes the output, one sample older does not.
+
+    Every weight is set to 1 / fan-in and every bias to 0.1 (every ReLU active, no
+    cancellation, as in :func:`danae_lite.model.receptive_field`): with the random init the
+    oldest sample's influence can be as small as float32 rounding (7e-9 rad seen), and
+    whether it survives the rounding then depends on the order of the sums."""
     net = net_with_stats(hidden=16)
+    with torch.no_grad():
+        for name, prm in net.named_parameters():
+            prm.fill_(1.0 / prm[0].numel() if name.endswith("weight") else 0.1)
     rf, t0 = net.receptive_field, 200
     x = walk(300)
     base = predict_causal(net, x)
@@ -202,9 +211,9 @@ def test_receptive_field_boundary():
     outside[t0 - rf] += 1.0
     inside[t0 - rf + 1] += 1.0
     assert base[t0, 0] == predict_causal(net, outside)[t0, 0]
-    assert base[t0, 0] != predict_causal(net, inside)[t0, 0]
+    assert abs(base[t0, 0] - predict_causal(net, inside)[t0, 0]) > 1e-4
     assert streamed[t0, 0] == s.run(outside)[t0, 0]
-    assert streamed[t0, 0] != s.run(inside)[t0, 0]
+    assert abs(streamed[t0, 0] - s.run(inside)[t0, 0]) > 1e-4
 
 
 # --- (d) training -------------------------------------------------------------------------
