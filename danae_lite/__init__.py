@@ -16,6 +16,7 @@ Modules, each with one job:
 * :mod:`~danae_lite.metrics`    the paper's error metrics and reported numbers
 * :mod:`~danae_lite.windows`    windows and stitching
 * :mod:`~danae_lite.model`, :mod:`~danae_lite.train`  the DANAE networks, training, inference
+* :mod:`~danae_lite.gemm_conv`  their convolutions as matrix products (channels-last)
 * :mod:`~danae_lite.streaming`  the causal network one sample at a time
 * :mod:`~danae_lite.pipeline`   KF -> one DANAE per angle and seed -> metric tables
 * :mod:`~danae_lite.baselines`, :mod:`~danae_lite.variants`  methods of the leaderboard

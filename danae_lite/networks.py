@@ -53,11 +53,11 @@ class NetworkJob:
 def cache_key(job: NetworkJob) -> str:
     """16 hex digits of a SHA-256 over the data, the settings (not the device or thread count)
     and the source of the code that builds, windows, seeds and trains the network."""
-    from . import model as model_module, train as train_module, windows as windows_module
+    from . import gemm_conv, model as model_module, train as train_module, windows as windows_module
     from .config import seeding_source
 
     h = hashlib.sha256()
-    for module in (model_module, train_module, windows_module):
+    for module in (gemm_conv, model_module, train_module, windows_module):
         h.update(Path(module.__file__).read_bytes())
     h.update(seeding_source().encode())
     settings = {k: v for k, v in job.config.to_dict().items() if k not in ("device", "num_threads")}
