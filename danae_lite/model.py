@@ -214,6 +214,14 @@ class DanaeBase(nn.Module):
     def _add(self, a: torch.Tensor, b: torch.Tensor) -> torch.Tensor:
         return a + b if self.skip else a
 
+    @staticmethod
+    def _layer(layer: nn.Module, h: torch.Tensor) -> torch.Tensor:
+        """One layer on channels-last ``h`` (batch, length, channels). A plain torch layer put
+        in by hand (an ablation, an exercise) works channels-first: it is transposed around."""
+        if isinstance(layer, (ChannelsLastConv1d, ChannelsLastConvTranspose1d)):
+            return layer(h)
+        return layer(h.transpose(1, 2)).transpose(1, 2)
+
     def describe(self, length: int | None = None) -> pd.DataFrame:
         """Layer table of this network, see :func:`layer_table`."""
         return layer_table(self, length)
@@ -297,19 +305,19 @@ class DanaePaper(DanaeBase):
         self._finish()
 
     def forward_net(self, x: torch.Tensor) -> torch.Tensor:
-        relu = torch.relu
-        x = x.transpose(1, 2)  # the layers work channels-last: (batch, length, channels)
-        e1 = relu(self.e1(x))
-        e2 = relu(self.e2(e1))
-        e3 = relu(self.e3(e2))
-        e4 = relu(self.e4(e3))
-        t1 = relu(self.t1(e4))
-        c1 = relu(self.c1(self._add(t1, e3)))
-        t2 = relu(self.t2(c1))
-        c2 = relu(self.c2(self._add(t2, e2)))
-        t3 = relu(self.t3(c2))
-        c3 = relu(self.c3(self._add(t3, e1)))
-        return self.out(c3).transpose(1, 2)
+        relu, f = torch.relu, self._layer  # f(layer, h): one layer on channels-last h
+        x = x.transpose(1, 2)  # (batch, length, channels)
+        e1 = relu(f(self.e1, x))
+        e2 = relu(f(self.e2, e1))
+        e3 = relu(f(self.e3, e2))
+        e4 = relu(f(self.e4, e3))
+        t1 = relu(f(self.t1, e4))
+        c1 = relu(f(self.c1, self._add(t1, e3)))
+        t2 = relu(f(self.t2, c1))
+        c2 = relu(f(self.c2, self._add(t2, e2)))
+        t3 = relu(f(self.t3, c2))
+        c3 = relu(f(self.c3, self._add(t3, e1)))
+        return f(self.out, c3).transpose(1, 2)
 
 
 class DanaeBig(DanaeBase):
@@ -386,20 +394,20 @@ class DanaeBig(DanaeBase):
         self._finish()
 
     def forward_net(self, x: torch.Tensor) -> torch.Tensor:
-        relu = torch.relu
-        x = x.transpose(1, 2)  # channels-last, as in DanaePaper
-        e1 = relu(self.e1(x))
-        e2 = relu(self.e2(e1))
-        e3 = relu(self.e3(e2))
-        e4 = relu(self.e4(e3))
-        e5 = relu(self.e5(e4))
-        e6 = relu(self.e6(e5))
-        c1 = relu(self.c1(self._add(relu(self.t1(e6)), e5)))
-        c2 = relu(self.c2(self._add(relu(self.t2(c1)), e4)))
-        c3 = relu(self.c3(self._add(relu(self.t3(c2)), e3)))
-        c4 = relu(self.c4(self._add(relu(self.t4(c3)), e2)))
-        c5 = relu(self.c5(self._add(relu(self.t5(c4)), e1)))
-        return self.out(c5).transpose(1, 2)
+        relu, f = torch.relu, self._layer  # channels-last, as in DanaePaper
+        x = x.transpose(1, 2)
+        e1 = relu(f(self.e1, x))
+        e2 = relu(f(self.e2, e1))
+        e3 = relu(f(self.e3, e2))
+        e4 = relu(f(self.e4, e3))
+        e5 = relu(f(self.e5, e4))
+        e6 = relu(f(self.e6, e5))
+        c1 = relu(f(self.c1, self._add(relu(f(self.t1, e6)), e5)))
+        c2 = relu(f(self.c2, self._add(relu(f(self.t2, c1)), e4)))
+        c3 = relu(f(self.c3, self._add(relu(f(self.t3, c2)), e3)))
+        c4 = relu(f(self.c4, self._add(relu(f(self.t4, c3)), e2)))
+        c5 = relu(f(self.c5, self._add(relu(f(self.t5, c4)), e1)))
+        return f(self.out, c5).transpose(1, 2)
 
 
 class DanaeCausal(DanaeBase):

@@ -99,3 +99,23 @@ def test_channels_first_input_is_refused_with_its_shape():
     strided = ChannelsLastConv1d(8, 8, kernel_size=3, stride=2)
     with pytest.raises(ValueError, match="stride 1"):
         strided(torch.zeros(4, 20, 8))
+
+
+def test_a_plain_torch_layer_put_in_by_hand_still_works():
+    """Chapter 3's exercise swaps a layer for torch's own nn.Conv1d: the network runs it
+    channels-first and, on the same weights, computes the same numbers (float32 rounding)."""
+    torch.manual_seed(3)
+    net = DanaePaper().eval()
+    swapped = DanaePaper().eval()
+    swapped.load_state_dict(net.state_dict())
+    plain = torch.nn.Conv1d(128, 128, kernel_size=3, padding=1, dilation=6)
+    plain.load_state_dict(net.e4.state_dict())
+    swapped.e4 = plain
+    x = torch.randn(8, 1, 20)
+    with torch.no_grad():
+        ref, out = net(x), swapped(x)
+    assert (out - ref).abs().max() <= 11 * 384 * 2.0**-24 * ref.abs().max()
+    wider = DanaePaper(window=80)
+    wider.e4 = torch.nn.Conv1d(128, 128, kernel_size=3, padding=1, dilation=3)
+    wider.t1 = torch.nn.ConvTranspose1d(128, 128, kernel_size=3, padding=1, dilation=3)
+    assert wider(torch.zeros(2, 1, 80)).shape == (2, 1, 80)
