@@ -718,7 +718,8 @@ def main(argv: Sequence[str] | None = None) -> dict[str, Any]:
         log("\n[AVX2 path] the same benchmarks with AVX2 code only (a child process)")
         child = run_avx2_path(_child_argv(args))
         report["avx2_path"] = {k: child.get(k) for k, *_ in HEADLINE} | {"machine": child["machine"]}
-    paths = {f"{isa['torch_capability']} ({isa['path']})": report}
+    label = "AVX2 (forced)" if isa["avx2_forced"] else f"{isa['torch_capability']} (native)"
+    paths = {label: report}
     if "avx2_path" in report:
         paths["AVX2 (forced)"] = report["avx2_path"]
     report["paths"] = {name: {k: p.get(k) for k, *_ in HEADLINE} for name, p in paths.items()}

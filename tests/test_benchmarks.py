@@ -34,7 +34,8 @@ def test_quick_benchmark_writes_json(tmp_path: Path, capsys) -> None:
     printed = capsys.readouterr().out
     assert "total wall time" in printed and "KF target" in printed
     isa = machine["isa"]
-    assert isa["torch_capability"] in printed and list(data["paths"]) == [f"{isa['torch_capability']} ({isa['path']})"]
+    assert isa["torch_capability"] in printed and list(data["paths"]) == [
+        "AVX2 (forced)" if isa["avx2_forced"] else f"{isa['torch_capability']} (native)"]
 
 
 def test_the_avx2_path_runs_in_a_child_process_with_avx2_kernels() -> None:
