@@ -3,7 +3,7 @@
 Runs the benchmark's two filters (:func:`danae_lite.broad.madgwick` at beta 0.12 and
 :func:`danae_lite.broad.mahony` at k_P 0.74, k_I 0.0012: the authors' common best parameters)
 on every trial found under ``<data dir>/broad/data_mat``, scores them with the benchmark's own
-metric (:func:`danae_lite.broad.evaluate`: total, heading and inclination RMSE over the movement
+metric (:func:`danae_lite.broad_benchmark.evaluate`: total, heading and inclination RMSE over the movement
 phases) and prints, per trial and filter, ours beside the published figure and the relative
 difference ``ours / published - 1``; then the largest relative difference per filter, the mean
 over the trials present (the published group ``all_trials`` is the mean over all 39) and the
@@ -37,7 +37,7 @@ try:
 except ImportError:  # run from a checkout without `pip install -e .`
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from danae_lite import broad
+from danae_lite import broad, broad_benchmark
 from danae_lite.config import data_dir as resolve_data_dir
 
 SHORT = {"total_rmse_deg": "total", "heading_rmse_deg": "heading", "inclination_rmse_deg": "incl"}
@@ -58,8 +58,8 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
                    help="folder of results_<filter>_average_rmse.json (default: beside the data dir, "
                         "reference/broad_published)")
     p.add_argument("--out", type=Path, default=None, help="write the per-trial table to this CSV file")
-    p.add_argument("--filters", nargs="+", choices=sorted(broad.BENCHMARK_FILTERS),
-                   default=list(broad.BENCHMARK_FILTERS), help="filters to run (default: both)")
+    p.add_argument("--filters", nargs="+", choices=sorted(broad_benchmark.BENCHMARK_FILTERS),
+                   default=list(broad_benchmark.BENCHMARK_FILTERS), help="filters to run (default: both)")
     p.add_argument("--trials", nargs="+", default=None,
                    help="only these trials (names or numbers, e.g. 02 10); default: all found")
     p.add_argument("--no-progress", action="store_true", help="no tqdm progress bar")
@@ -72,7 +72,7 @@ def main(argv: Sequence[str] | None = None) -> pd.DataFrame:
     if data is None:
         raise SystemExit("no data directory: pass --data-dir or set DANAE_DATA (a folder holding broad/data_mat)")
     pub_dir = args.published_dir if args.published_dir is not None else default_published_dir(data)
-    published = {name: broad.published(name, pub_dir) for name in args.filters}
+    published = {name: broad_benchmark.published(name, pub_dir) for name in args.filters}
     paths = broad.find_trials(data, args.trials)
     index_path = paths[0].parent / "trials.json"
     index = broad.trial_index(index_path) if index_path.is_file() else None
@@ -91,9 +91,9 @@ def main(argv: Sequence[str] | None = None) -> pd.DataFrame:
         for name in args.filters:
             bar.set_postfix_str(f"{rec.name[:24]} {name}")
             t = time.perf_counter()
-            q = broad.BENCHMARK_FILTERS[name](rec.gyro, rec.acc, rec.mag, rec.fs, **published[name].params)
+            q = broad_benchmark.BENCHMARK_FILTERS[name](rec.gyro, rec.acc, rec.mag, rec.fs, **published[name].params)
             seconds[name] += time.perf_counter() - t
-            ours = broad.evaluate(rec, q).as_dict()
+            ours = broad_benchmark.evaluate(rec, q).as_dict()
             pub = published[name].trials.get(rec.name)
             row: dict[str, object] = {"trial": rec.name, "filter": name}
             for metric, short in SHORT.items():

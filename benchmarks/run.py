@@ -60,7 +60,7 @@ except ImportError:  # run from a checkout without `pip install -e .`
 import torch
 
 from danae_lite import filters
-from danae_lite.config import default_device
+from danae_lite.seeding import default_device
 from danae_lite.kalman import KFConfig, run_kf
 from danae_lite.simulate import simulate
 from danae_lite.model import DanaePaper

@@ -8,6 +8,7 @@ number, the 1-based column (and its name when known) and what was expected.
 from __future__ import annotations
 
 import io
+import json
 import re
 from collections.abc import Sequence
 from pathlib import Path
@@ -29,6 +30,16 @@ def read_bytes(path: Path, what: str = "file") -> bytes:
     if not path.is_file():
         raise DataError(f"{path}: {what} not found")
     return path.read_bytes()
+
+
+def read_json(path: Path, what: str = "file") -> object:
+    """Parse a JSON file; a missing file or invalid JSON raises DataError naming the file."""
+    if not path.is_file():
+        raise DataError(f"{path}: {what} not found")
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DataError(f"{path}: not valid JSON ({exc})") from exc
 
 
 def line_spans(raw: bytes) -> tuple[NDArray[np.int64], NDArray[np.int64]]:

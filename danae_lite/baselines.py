@@ -48,13 +48,16 @@ Angles handled on the circle: the post-processing methods work on the KF's angle
 along the recording, and their training target is the truth moved next to it,
 ``x + wrap(truth - x)``, so that no method is taught a 2π jump; outputs are wrapped to
 [-π, π) at the end. For roll and pitch this changes nothing.
+
+The interface (:class:`~danae_lite.methods.Method`, the fitting context, the objectives) is
+:mod:`danae_lite.methods`; ``danae`` is :class:`danae_lite.paper_danae.PaperDanae` on the paper
+KF's output, the same estimator as the paper's experiment (:func:`danae_lite.pipeline.reproduce`).
 """
 from __future__ import annotations
 
 import itertools
-import os
 from collections.abc import Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -62,15 +65,19 @@ import pandas as pd
 from numpy.typing import NDArray
 from scipy import signal
 from scipy.ndimage import uniform_filter1d
-from scipy.spatial.transform import Rotation
 
-from . import filters, kalman
-from .alignment import FrameAlignment
-from .angles import ANGLES, euler_to_quat, wrap
-from .metrics import errors, rmse
+from . import filters, kalman, methods
+from .angles import ANGLES, wrap
+from .methods import Method, total_error_rmse, total_objective, train_objective
+from .paper_danae import PaperDanae, check_settings, continuous_target
 from .recording import Recording
-from .train import TrainConfig, predict
 from .windows import sliding_windows, stitch_overlap_average
+
+__all__ = ["BUTTER_CUTOFFS_HZ", "BUTTER_ORDER", "KF_Q_ANGLE", "KF_Q_BIAS", "LINEAR_WINDOW", "MA_LENGTHS",
+           "METHODS", "Butterworth", "Constant", "Context", "Danae", "LibraryFilter", "LinearMap", "Method",
+           "MovingAverage", "PaperKF", "TunedKF", "TunedKFSmoother", "apply_linear_map", "butterworth_lowpass",
+           "denoiser_source", "fit_linear_map", "is_method_name", "make_method", "moving_average", "total_error_rmse",
+           "total_objective", "train_objective"]
 
 Array = NDArray[np.float64]
 
@@ -94,100 +101,14 @@ LINEAR_WINDOW = 20
 
 
 @dataclass
-class Context:
-    """What every method may use to fit: the aligned training recordings, their clean masks and
-    the run's settings. Nothing of the test recordings is in it."""
-
-    train: list[Recording]
-    """Training recordings, aligned (:meth:`FrameAlignment.apply`)."""
-    clean: dict[str, NDArray[np.bool_]]
-    """Clean ground-truth mask per training recording name."""
-    alignment: FrameAlignment
-    seeds: tuple[int, ...] = (0,)
-    """DANAE training seeds."""
-    train_config: TrainConfig = field(default_factory=TrainConfig)
-    """DANAE training settings (the seed is replaced per network)."""
-    cache: str | os.PathLike[str] | None = None
-    """Trained-network cache folder (None: no cache), from the entry point."""
-    jobs: int = 1
-    """Worker processes for the networks (:func:`danae_lite.networks.train_networks`)."""
-    progress: bool = False
+class Context(methods.Context):
+    """:class:`danae_lite.methods.Context` that builds the methods of this module by name
+    (:func:`make_method`) unless it is given another ``factory``."""
 
     def __post_init__(self) -> None:
-        names = {r.name for r in self.train}
-        extra = sorted(set(self.clean) - names)
-        if extra:
-            raise ValueError(f"the fitting context holds masks of recordings that are not training ones: {extra}")
-    fitted: dict[str, "Method"] = field(default_factory=dict)
-    """Methods already fitted on ``train`` by name, so that a method another one builds on
-    (e.g. a DANAE variant's source filter) is fitted, and grid-searched, only once."""
-
-    def method(self, name: str) -> "Method":
-        """The leaderboard method ``name`` fitted on this context (fitted once, then reused)."""
-        if name not in self.fitted:
-            self.fitted[name] = make_method(name).fit(self)
-        return self.fitted[name]
-
-
-def train_objective(est: dict[str, Array], ctx: Context, angles: Sequence[int]) -> Array:
-    """Clean-sample RMSE [rad] per angle index over all training recordings taken together."""
-    errs = [errors(est[r.name][ctx.clean[r.name]][:, angles], r.euler[ctx.clean[r.name]][:, angles])
-            for r in ctx.train]
-    return np.atleast_1d(rmse(np.concatenate(errs)))
-
-
-def total_error_rmse(est: dict[str, Array], recs: Sequence[Recording], clean: dict[str, NDArray[np.bool_]]) -> float:
-    """RMSE [rad] of the total rotation error on the clean samples of ``recs`` taken together:
-    the angle of ``R(est) R(truth)^T`` per sample (``est[name]``: Euler angles (N, 3) [rad] in
-    the ground-truth frame). A missing yaw (NaN: a filter without heading) is replaced by the
-    true one, so that only the tilt error counts."""
-    angles = []
-    for r in recs:
-        ok = clean[r.name]
-        e = np.array(est[r.name][ok], dtype=float)
-        missing = np.isnan(e[:, 2])
-        e[missing, 2] = r.euler[ok][missing, 2]
-        err = Rotation.from_quat(euler_to_quat(e)) * Rotation.from_quat(r.quat[ok]).inv()
-        angles.append(err.magnitude())
-    a = np.concatenate(angles)
-    return float(np.sqrt(np.mean(a * a)))
-
-
-def total_objective(est: dict[str, Array], ctx: Context) -> float:
-    """:func:`total_error_rmse` over the training recordings of ``ctx``: the objective of every
-    whole-filter grid search."""
-    return total_error_rmse(est, ctx.train, ctx.clean)
-
-
-def _continuous(x: Array, truth: Array) -> Array:
-    """Truth moved next to ``x`` (``x + wrap(truth - x)``), so a target never jumps by 2π."""
-    return x + wrap(truth - x)
-
-
-class Method:
-    """Base class: ``fit(ctx)`` then ``predict(rec) -> list of (N, 3) [rad]`` (one per seed).
-
-    ``causal`` says whether the output at sample ``t`` depends only on samples up to ``t`` (so
-    the method could run on-line as it is); a method that looks ahead (a zero-phase filter, a
-    centred window, DANAE's window around the sample) is not causal.
-    """
-
-    name = "method"
-    description = ""
-    causal = False
-
-    def __init__(self) -> None:
-        self.params: dict[str, Any] = {}
-        """Chosen parameters (plain numbers)."""
-        self.search: pd.DataFrame | None = None
-        """The grid search on the training recordings: one row per candidate with its objective [rad]."""
-
-    def fit(self, ctx: Context) -> "Method":
-        self.ctx = ctx
-        return self
-
-    def predict(self, rec: Recording) -> list[Array]:
-        raise NotImplementedError
+        super().__post_init__()
+        if self.factory is None:
+            self.factory = make_method
 
 
 class Constant(Method):
@@ -399,7 +320,7 @@ class LinearMap(_OnPaperKF):
         self.W = {}
         for k, a in enumerate(ANGLES):
             xs = [self.kf_train[r.name][:, k] for r in ctx.train]
-            ys = [_continuous(self.kf_train[r.name][:, k], r.euler[:, k]) for r in ctx.train]
+            ys = [continuous_target(self.kf_train[r.name][:, k], r.euler[:, k]) for r in ctx.train]
             self.W[a] = fit_linear_map(xs, ys, masks=[ctx.clean[r.name] for r in ctx.train])
         self.params = {"window": LINEAR_WINDOW, "coefficients": (LINEAR_WINDOW + 1) * LINEAR_WINDOW}
         return self
@@ -468,68 +389,48 @@ class Danae(_OnPaperKF):
     def __init__(self, targets: str = "continuous", clean_targets: bool = True,
                  angles: Sequence[str] = ANGLES) -> None:
         super().__init__()
-        if targets not in ("continuous", "raw"):
-            raise ValueError(f"targets={targets!r}: choose 'continuous' or 'raw'")
-        unknown = [a for a in angles if a not in ANGLES]
-        if not angles or unknown:
-            raise ValueError(f"angles must be a non-empty subset of {ANGLES}, got {tuple(angles)}")
-        self.targets, self.clean_targets, self.angles = targets, bool(clean_targets), tuple(angles)
+        self.angles = check_settings(targets, angles)
+        self.targets, self.clean_targets = targets, bool(clean_targets)
         if targets == "raw" or not clean_targets:
             self.description = (f"the paper's DANAE per angle on the paper KF's output, {targets} targets, "
                                 f"{'glitch-free' if clean_targets else 'every'} target sample")
 
-    def fit(self, ctx: Context) -> "Danae":
-        from .networks import train_networks
-
+    def fit(self, ctx: Context) -> Danae:
         super().fit(ctx)
-        xs = {a: [self.kf_train[r.name][:, ANGLES.index(a)] for r in ctx.train] for a in self.angles}
-        if self.targets == "raw":
-            ys = {a: [r.euler[:, ANGLES.index(a)] for r in ctx.train] for a in self.angles}
-        else:
-            ys = {a: [_continuous(self.kf_train[r.name][:, ANGLES.index(a)], r.euler[:, ANGLES.index(a)])
-                      for r in ctx.train] for a in self.angles}
-        masks = [ctx.clean[r.name] for r in ctx.train] if self.clean_targets else None
-        self.results = train_networks(xs, ys, ctx.train_config, ctx.seeds, masks=masks, tag=self.name,
-                                      metadata={"method": self.name, "train": [r.name for r in ctx.train]},
-                                      cache=ctx.cache, jobs=ctx.jobs, progress=ctx.progress)
+        self.model = PaperDanae(self.angles, targets=self.targets, config=ctx.train_config, seeds=ctx.seeds,
+                                tag=self.name, metadata={"method": self.name, "train": [r.name for r in ctx.train]},
+                                cache=ctx.cache, jobs=ctx.jobs, progress=ctx.progress)
+        self.model.fit([self.kf_train[r.name] for r in ctx.train], [r.euler for r in ctx.train],
+                       [ctx.clean[r.name] for r in ctx.train] if self.clean_targets else None)
+        self.results = self.model.results_
         cfg = ctx.train_config
         self.params = {"arch": cfg.arch, "window": cfg.window, "lr": cfg.lr, "batch_size": cfg.batch_size,
                        "epochs": cfg.epochs, "max_steps": cfg.max_steps, "seeds": list(ctx.seeds),
                        "targets": self.targets, "clean_targets": self.clean_targets}
-        self.seconds_training = float(sum(r.seconds for r in self.results.values()))
+        self.seconds_training = self.model.seconds_
         return self
 
     def predict(self, rec: Recording) -> list[Array]:
-        x = self.kf.raw(rec)
-        out = []
-        for seed in self.ctx.seeds:
-            e = np.full_like(x, np.nan)
-            for a in self.angles:
-                k = ANGLES.index(a)
-                e[:, k] = predict(self.results[(a, int(seed))], x[:, k])[:, 0]
-            if self.targets == "continuous":  # raw targets: the network's output as it is (the paper's)
-                e[:, 2] = wrap(e[:, 2])
-            out.append(e)
-        return out
+        return self.model.predict(self.kf.raw(rec))
 
 
 def make_method(name: str) -> Method:
-    """A fresh, unfitted method by leaderboard name (see :data:`METHODS`)."""
+    """A fresh, unfitted method of this module by leaderboard name: one of :data:`METHODS`
+    (a library filter for the names of :data:`danae_lite.filters.FILTERS`).
+    :func:`danae_lite.registry.make_method` builds the ``danae-res[<filter>]`` names too."""
     simple = {"constant": Constant, "paper_kf": PaperKF, "tuned_kf": TunedKF, "tuned_kf_rts": TunedKFSmoother,
               "butterworth": Butterworth, "moving_average": MovingAverage, "linear_map": LinearMap, "danae": Danae}
     if name in simple:
         return simple[name]()
     if name in filters.FILTERS:
         return LibraryFilter(name)
-    source = _denoiser_source(name)
-    if source is not None:
-        from .denoiser import DanaeRes  # the recommended denoiser, on a filter named in brackets
-
-        return DanaeRes(source)
+    if denoiser_source(name) is not None:
+        raise ValueError(f"{name!r} is the denoiser of danae_lite.denoiser: build it with "
+                         "danae_lite.registry.make_method")
     raise ValueError(f"unknown method {name!r}; choose from {', '.join(METHODS)} or danae-res[<filter>]")
 
 
-def _denoiser_source(name: str) -> str | None:
+def denoiser_source(name: str) -> str | None:
     """``"danae-res[vqf]"`` -> ``"vqf"`` when the bracket holds a filter of :data:`METHODS`, else None."""
     if name.startswith("danae-res[") and name.endswith("]"):
         source = name[len("danae-res["):-1]
@@ -539,6 +440,6 @@ def _denoiser_source(name: str) -> str | None:
 
 
 def is_method_name(name: str) -> bool:
-    """Whether :func:`make_method` knows ``name``: one of :data:`METHODS` or ``danae-res[<filter>]``
+    """Whether :func:`danae_lite.registry.make_method` knows ``name``: one of :data:`METHODS` or ``danae-res[<filter>]``
     (the recommended denoiser on that filter's output, :class:`danae_lite.denoiser.DanaeRes`)."""
-    return name in METHODS or _denoiser_source(name) is not None
+    return name in METHODS or denoiser_source(name) is not None

@@ -26,15 +26,11 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .config import (_FALSE, _TRUE, CACHE_ENV, DATA_ENV, DEFAULT_SEED, FAST_ENV, JOBS_ENV, RunSettings,
-                     data_dir, fast_mode, jobs, seed_everything)
+from .config import CACHE_ENV, DATA_ENV, DEFAULT_SEED, FAST_ENV, JOBS_ENV, RunSettings, kernel_environment
+from .seeding import seed_everything
 
 if TYPE_CHECKING:
     import pandas as pd
-
-
-BookConfig = RunSettings
-"""What a chapter knows about its run: the package's one settings object (:class:`~danae_lite.config.RunSettings`)."""
 
 
 def setup(seed: int = DEFAULT_SEED, *, verbose: bool = True) -> RunSettings:
@@ -145,7 +141,7 @@ def stamp(nb: MutableMapping[str, Any], *, seconds: float, data_dir: str | os.Pa
     """
     from importlib.metadata import PackageNotFoundError, version
 
-    from . import __version__
+    from ._version import __version__
 
     try:
         torch_version = version("torch")
@@ -168,16 +164,6 @@ def stamp(nb: MutableMapping[str, Any], *, seconds: float, data_dir: str | os.Pa
     return record
 
 
-def _env_fast(env: Mapping[str, str]) -> bool:
-    """Fast mode as the kernel will see it in ``env`` (the rules of :func:`~danae_lite.config.fast_mode`)."""
-    raw = env.get(FAST_ENV, "").strip().lower()
-    if raw in _TRUE:
-        return True
-    if raw in _FALSE:
-        return False
-    raise ValueError(f"{FAST_ENV}={raw!r}: expected one of 1/0, true/false, yes/no, on/off")
-
-
 def _write_atomically(nb: Any, target: Path) -> None:
     """Write ``nb`` (nbformat v4) to ``target`` through a temporary file in the same folder.
 
@@ -197,7 +183,7 @@ def _write_atomically(nb: Any, target: Path) -> None:
 
 
 def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLike[str],
-                     env: Mapping[str, str], timeout: float | None) -> float:
+                     env: Mapping[str, str], data_dir: Path | None, fast: bool, timeout: float | None) -> float:
     """Execute one notebook in a fresh ``python3`` kernel and write it, with its record, to ``out_path``.
 
     The kernel runs in the notebook's own folder (as Jupyter Book runs it) with exactly the
@@ -212,8 +198,9 @@ def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLik
     out_path
         Where to write the executed notebook (nbformat v4); may be ``path``.
     env
-        The whole environment of the kernel. ``DANAE_DATA`` and ``DANAE_FAST`` in it are also
-        what the record (:func:`stamp`) says about the run.
+        The whole environment of the kernel (:func:`~danae_lite.config.kernel_environment`).
+    data_dir, fast
+        The data directory and fast mode that ``env`` gives the kernel, for the record (:func:`stamp`).
     timeout
         Limit for each cell [s]; ``None`` for no limit.
 
@@ -235,7 +222,6 @@ def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLik
     path = Path(path).resolve()
     out_path = Path(out_path)
     kernel_env = dict(env)
-    fast = _env_fast(kernel_env)
     nb = nbformat.read(path, as_version=4)
     current: dict[str, int] = {"index": -1}
 
@@ -259,7 +245,7 @@ def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLik
             detail = lines[-1] if lines else type(exc).__name__
         raise BookExecutionError(f"{path.name}: {where} failed: {detail}") from exc
     seconds = time.perf_counter() - start
-    stamp(nb, seconds=seconds, data_dir=kernel_env.get(DATA_ENV) or None, fast=fast)
+    stamp(nb, seconds=seconds, data_dir=data_dir, fast=fast)
     _write_atomically(nb, out_path)
     return seconds
 
@@ -278,7 +264,7 @@ def _refusal(data_dir: Path | None, fast: bool) -> str | None:
 
 
 def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str | os.PathLike[str] | None,
-                 cache_dir: str | os.PathLike[str] | None, fast: bool,
+                 cache_dir: str | os.PathLike[str] | None, fast: bool, jobs: int = 1,
                  out_dir: str | os.PathLike[str] | None = None, timeout: float | None = 3600,
                  progress: bool = True) -> pd.DataFrame:
     """Execute chapters one after the other and write them with their outputs.
@@ -299,6 +285,8 @@ def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str |
         Network cache, given as ``DANAE_CACHE``; ``None`` removes it (no cache).
     fast
         Fast mode, given as ``DANAE_FAST`` (``"1"``/``"0"``).
+    jobs
+        Worker processes of each chapter's trainings and folds, given as ``DANAE_JOBS``.
     out_dir
         Folder for executed copies; ``None`` writes each notebook in place.
     timeout
@@ -332,16 +320,11 @@ def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str |
     if in_place and (why := _refusal(data, fast)):
         raise BookExecutionError(why)
 
-    env = dict(os.environ)
-    env.pop(DATA_ENV, None)
-    env.pop(CACHE_ENV, None)
-    if data is not None:
-        env[DATA_ENV] = str(data)
-    if cache_dir is not None:
-        cache = Path(cache_dir).expanduser().resolve()
+    cache = Path(cache_dir).expanduser().resolve() if cache_dir is not None else None
+    if cache is not None:
         cache.mkdir(parents=True, exist_ok=True)
-        env[CACHE_ENV] = str(cache)
-    env.update({FAST_ENV: "1" if fast else "0", "MPLBACKEND": INLINE_BACKEND, "PYTHONHASHSEED": "0"})
+    env = kernel_environment(data_dir=data, cache=cache, fast=fast, n_jobs=jobs)
+    env.update({"MPLBACKEND": INLINE_BACKEND, "PYTHONHASHSEED": "0"})
 
     if out is not None and not in_place:
         out.mkdir(parents=True, exist_ok=True)
@@ -352,7 +335,7 @@ def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str |
     for path in bar:
         bar.set_postfix_str(path.stem)
         target = out / path.name if out is not None else path
-        seconds = execute_notebook(path, out_path=target, env=env, timeout=timeout)
+        seconds = execute_notebook(path, out_path=target, env=env, data_dir=data, fast=fast, timeout=timeout)
         rows.append({"notebook": path.name, "seconds": round(seconds, 1),
                      "data": "real" if data else "simulated", "fast": fast, "written": str(target)})
         if progress:
@@ -458,12 +441,10 @@ def main(argv: Sequence[str] | None = None) -> int:
                 raise BookExecutionError(f"unknown chapter {', '.join(unknown)} for --only: "
                                          f"expected one of {', '.join(chapters)}")
             chapters = [c for c in chapters if c in wanted]
-        data = data_dir(args.data_dir)
-        fast = fast_mode(args.fast)
-        os.environ[JOBS_ENV] = str(jobs(args.jobs))  # read by each chapter's setup() in its kernel
-        cache = args.cache or os.environ.get(CACHE_ENV, "").strip() or root / "_build" / "danae_cache"
-        execute_book([folder / f"{c}.ipynb" for c in chapters], data_dir=data, cache_dir=cache, fast=fast,
-                     out_dir=args.out, timeout=args.timeout if args.timeout > 0 else None)
+        settings = RunSettings.from_env(fast=args.fast, data=args.data_dir, cache=args.cache, n_jobs=args.jobs)
+        cache = settings.cache or root / "_build" / "danae_cache"
+        execute_book([folder / f"{c}.ipynb" for c in chapters], data_dir=settings.data_dir, cache_dir=cache,
+                     fast=settings.fast, jobs=settings.jobs, out_dir=args.out, timeout=args.timeout if args.timeout > 0 else None)
     except (BookExecutionError, FileNotFoundError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -1,5 +1,5 @@
-"""The BROAD benchmark: loader, the benchmark's own error metric, its two reference filters and
-the authors' published figures.
+"""The BROAD benchmark's recordings: the loader (its error metric, reference filters and the
+authors' published figures are in :mod:`danae_lite.broad_benchmark`).
 
 BROAD (Berlin Robust Orientation Estimation Assessment Dataset) is by Daniel Laidig, Marco
 Caruso, Andrea Cereatti and Thomas Seel: "BROAD—A Benchmark for Robust Inertial Orientation
@@ -34,7 +34,7 @@ What :func:`load_trial` builds (a :class:`~danae_lite.recording.Recording`, ``so
 * ``quat`` = the ground truth, scalar-last ``[x, y, z, w]``, body -> **NWU** (x magnetic north,
   y west, z up), i.e. ``Rz(-90°) * opt_quat``: the frame of every filter in
   :mod:`danae_lite.filters`, so that filter output and ground truth compare directly. The
-  benchmark's error metric is the same in ENU and NWU (see :func:`error_angles`);
+  benchmark's error metric is the same in ENU and NWU (see :func:`danae_lite.broad_benchmark.error_angles`);
 * ground-truth gaps (NaN rows of ``opt_quat``: 42-4845 samples per trial, mostly before and
   after the movement, up to 513 inside it) are filled so that ``quat`` is finite everywhere:
   spherical-linear interpolation between the valid neighbours inside a gap, the nearest valid
@@ -47,82 +47,32 @@ What :func:`load_trial` builds (a :class:`~danae_lite.recording.Recording`, ``so
 ``position`` (N, 3) [m] in **ENU** as stored (NaN where missing), ``description`` and
 ``groups`` (from ``trials.json``; None / () when there is none), ``info``, ``path``,
 ``conventions``.
-
-The metric (:func:`error_angles`, :func:`benchmark_rmse`): the error quaternion in the earth
-frame, ``q_err = q_est * conj(q_true)``, split into a rotation about the vertical (heading) and
-one about a horizontal axis (inclination); RMSE over the movement samples with valid ground
-truth. The benchmark removes no heading offset (its code evaluates 9D estimates only); the
-inclination error is by construction unaffected by a constant heading offset of the estimate,
-which makes it the figure to compare for 6D filters (no magnetometer, arbitrary heading).
-
-The filters (:func:`madgwick`, :func:`mahony`) re-implement what the benchmark ran to make
-its published figures: Madgwick's and Mahony's MARG filters as in the x-io reference code,
-first-order quaternion integration, initialised from the first accelerometer/magnetometer
-sample with the benchmark's formula (:func:`benchmark_initial_quat`). With the published
-common parameters (Madgwick beta 0.12; Mahony k_P 0.74, k_I 0.0012) they reproduce the
-authors' per-trial total/heading/inclination RMSE to a relative 1.1e-4 or better on all 24
-trials we have (the residue is the reference code's single-precision arithmetic: a float32
-emulation of its Mahony matched the published figures of two trials to 1e-13). The
-``ahrs``-based wrappers of :mod:`danae_lite.filters` do not: ``ahrs``'s Madgwick uses the
-paper's full-size magnetic reference where the reference code predicts half of it (per-trial
-total RMSE off by -35 % to +44 %), and ``ahrs``'s Mahony starts from another initial quaternion
-(off by -5.5 % to +8.4 %; with the benchmark's initial quaternion it matches to 1e-4).
 """
 from __future__ import annotations
 
-import json
 import math
 import re
-from collections.abc import Callable, Iterable, Mapping
+from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import ArrayLike, NDArray
+from numpy.typing import NDArray
 
-from .filters import G
+from ._loading import read_json
+from .angles import G, enu_to_nwu
 from .recording import DataError, Recording
 
 Array = NDArray[np.float64]
 
-__all__ = [
-    "BENCHMARK_FILTERS",
-    "CONVENTIONS",
-    "FS",
-    "METRICS",
-    "PUBLISHED_PARAMS",
-    "QUAT_NORM_TOL",
-    "BroadRMSE",
-    "Published",
-    "TrialIndex",
-    "benchmark_initial_quat",
-    "benchmark_rmse",
-    "data_mat_dir",
-    "enu_to_nwu",
-    "error_angles",
-    "error_quaternion",
-    "evaluate",
-    "find_trials",
-    "group_means",
-    "load_trial",
-    "load_trials",
-    "madgwick",
-    "mahony",
-    "nwu_to_enu",
-    "published",
-    "quat_multiply",
-    "run_benchmark_filter",
-    "trial_groups",
-    "trial_index",
-]
+__all__ = ["CONVENTIONS", "FS", "QUAT_NORM_TOL", "TrialIndex", "data_mat_dir", "find_trials", "load_trial",
+           "load_trials", "trial_groups", "trial_index"]
 
 FS = 2000.0 / 7.0
 """BROAD's sample rate, 285.714 Hz (each file stores its own ``sampling_rate``)."""
 QUAT_NORM_TOL = 1e-3
 """Largest accepted ``|‖opt_quat‖ - 1|`` (the files hold unit quaternions to 1e-15)."""
-METRICS: tuple[str, str, str] = ("total_rmse_deg", "heading_rmse_deg", "inclination_rmse_deg")
-"""The benchmark's three figures, as named in its result files."""
 CONVENTIONS = (
     "BROAD: fs from sampling_rate (285.714 Hz); gyro [rad/s], mag [µT] and acc [g] "
     "(imu_acc / 9.80665, +g up at rest = tilt convention) in the IMU body frame; "
@@ -134,173 +84,6 @@ CONVENTIONS = (
 _TRIAL_RE = re.compile(r"(\d+)_(.+)")
 _REQUIRED: dict[str, int | None] = {
     "imu_gyr": 3, "imu_acc": 3, "imu_mag": 3, "opt_quat": 4, "movement": None, "sampling_rate": None}
-_S = math.sqrt(0.5)
-_ENU_FROM_NWU = np.array([0.0, 0.0, _S, _S])    # Rz(+90°), scalar-last
-_NWU_FROM_ENU = np.array([0.0, 0.0, -_S, _S])   # Rz(-90°), scalar-last
-
-
-# --- quaternion helpers (scalar-last) ------------------------------------------------------
-
-def quat_multiply(p: ArrayLike, q: ArrayLike) -> Array:
-    """Hamilton product ``p * q`` of scalar-last quaternions, row by row.
-
-    ``p`` and ``q`` are (4,) or (N, 4); a single quaternion is applied to every row of the
-    other. ``p * q`` rotates by ``q`` first, then by ``p``. NaN rows stay NaN.
-    """
-    p = np.asarray(p, dtype=float)
-    q = np.asarray(q, dtype=float)
-    x1, y1, z1, w1 = np.moveaxis(p, -1, 0)
-    x2, y2, z2, w2 = np.moveaxis(q, -1, 0)
-    return np.stack([
-        w1 * x2 + x1 * w2 + y1 * z2 - z1 * y2,
-        w1 * y2 - x1 * z2 + y1 * w2 + z1 * x2,
-        w1 * z2 + x1 * y2 - y1 * x2 + z1 * w2,
-        w1 * w2 - x1 * x2 - y1 * y2 - z1 * z2,
-    ], axis=-1)
-
-
-def enu_to_nwu(q_enu: ArrayLike) -> Array:
-    """Body -> ENU quaternions (scalar-last) to body -> NWU: ``Rz(-90°) * q``."""
-    return quat_multiply(_NWU_FROM_ENU, q_enu)
-
-
-def nwu_to_enu(q_nwu: ArrayLike) -> Array:
-    """Body -> NWU quaternions (scalar-last) to body -> ENU: ``Rz(+90°) * q``."""
-    return quat_multiply(_ENU_FROM_NWU, q_nwu)
-
-
-# --- the benchmark's metric ----------------------------------------------------------------
-
-def _as_quats(q: ArrayLike, name: str) -> Array:
-    arr = np.asarray(q, dtype=float)
-    if arr.ndim != 2 or arr.shape[1] != 4:
-        raise ValueError(f"{name} must have shape (N, 4) (scalar-last x, y, z, w), got {arr.shape}")
-    return arr
-
-
-def error_quaternion(q_est: ArrayLike, q_true: ArrayLike) -> Array:
-    """The benchmark's error quaternion in the earth frame, scalar-last (N, 4).
-
-    ``q_err = q_est * conj(q_true)`` after normalising both, then normalised: the rotation
-    that takes the true orientation onto the estimate, expressed in the reference (earth)
-    frame. Both inputs are body -> reference quaternions, scalar-last, in one common frame
-    whose z axis is vertical (NWU or ENU alike). NaN rows give NaN rows.
-    """
-    qe = _as_quats(q_est, "q_est")
-    qt = _as_quats(q_true, "q_true")
-    if qe.shape != qt.shape:
-        raise ValueError(f"q_est has shape {qe.shape} but q_true has {qt.shape}")
-    qe = qe / np.linalg.norm(qe, axis=1, keepdims=True)
-    qt = qt / np.linalg.norm(qt, axis=1, keepdims=True)
-    err = quat_multiply(qe, qt * np.array([-1.0, -1.0, -1.0, 1.0]))
-    return err / np.linalg.norm(err, axis=1, keepdims=True)
-
-
-def error_angles(q_est: ArrayLike, q_true: ArrayLike) -> Array:
-    """Per-sample total, heading and inclination errors [rad], shape (N, 3), as BROAD defines them.
-
-    With ``q_err = (x, y, z, w)`` from :func:`error_quaternion`:
-
-    * total error       = 2 * arccos(|w|), the whole rotation angle of q_err, in [0, pi];
-    * heading error     = 2 * arctan(|z| / |w|), in [0, pi];
-    * inclination error = 2 * arccos(sqrt(w² + z²)), in [0, pi].
-
-    These come from writing ``q_err = q_heading * q_incl``, where ``q_heading`` turns about the
-    vertical axis (its angle is the heading error) and ``q_incl`` about a horizontal axis (its
-    angle is the inclination error). Because ``q_err`` lives in the earth frame, a constant
-    heading offset of the estimate (``q_est -> Rz(a) * q_est``) leaves w² + z² and therefore the
-    inclination error unchanged, and a rotation of the common reference frame about z (ENU vs
-    NWU) changes none of the three. Deviation from the reference code: arctan2 is used, so
-    ``w = z = 0`` (a pure 180° tilt) gives a heading error of 0 where the reference code gets
-    0/0 = NaN and drops the sample.
-    """
-    e = error_quaternion(q_est, q_true)
-    w = np.abs(e[:, 3])
-    z = np.abs(e[:, 2])
-    total = 2.0 * np.arccos(np.clip(w, 0.0, 1.0))
-    heading = 2.0 * np.arctan2(z, w)
-    incl = 2.0 * np.arccos(np.clip(np.sqrt(w * w + z * z), 0.0, 1.0))
-    return np.stack([total, heading, incl], axis=1)
-
-
-@dataclass(frozen=True)
-class BroadRMSE:
-    """The benchmark's figures for one trial [deg] and the number of samples they cover."""
-
-    total_rmse_deg: float
-    heading_rmse_deg: float
-    inclination_rmse_deg: float
-    n_samples: int
-
-    def as_dict(self) -> dict[str, float]:
-        """The three figures, keyed as in the benchmark's result files (:data:`METRICS`)."""
-        return {m: float(getattr(self, m)) for m in METRICS}
-
-
-def _mask(movement: ArrayLike, n: int, name: str = "movement") -> NDArray[np.bool_]:
-    m = np.asarray(movement)
-    if m.ndim == 2 and m.shape[1] == 1:
-        m = m[:, 0]
-    if m.shape != (n,):
-        raise ValueError(f"{name} must have shape ({n},), got {m.shape}")
-    if m.dtype != bool:
-        bad = ~np.isin(m, (0, 1))
-        if bad.any():
-            r = int(np.argmax(bad))
-            raise ValueError(f"{name}[{r}] is {m[r].item()!r}; expected 0/1 or a boolean")
-        m = m.astype(bool)
-    return m
-
-
-def benchmark_rmse(q_est: ArrayLike, q_true: ArrayLike, movement: ArrayLike) -> BroadRMSE:
-    """Total, heading and inclination RMSE [deg] over the movement phases, as BROAD computes them.
-
-    Per sample, the errors of :func:`error_angles`; then for each of the three
-    RMSE = sqrt(mean of error² over the samples where ``movement`` is true and ``q_true`` is
-    valid), converted to degrees. Rows of ``q_true`` that are NaN (optical gaps) are left out,
-    as the benchmark's ``nanmean`` leaves them out. No heading offset is removed.
-
-    Parameters
-    ----------
-    q_est : (N, 4) estimated orientation, scalar-last, body -> reference (z up), finite.
-    q_true : (N, 4) ground truth in the same frame; all-NaN rows mark missing samples.
-    movement : (N,) or (N, 1) boolean or 0/1 mask of the evaluated samples.
-
-    Raises
-    ------
-    ValueError
-        Shapes disagree, ``q_est`` is not finite (the reference code would silently drop such
-        rows; here a filter that returns NaN is an error), ``movement`` holds other values than
-        0/1, or no sample is both moving and valid.
-    """
-    qe = _as_quats(q_est, "q_est")
-    qt = _as_quats(q_true, "q_true")
-    if qe.shape != qt.shape:
-        raise ValueError(f"q_est has shape {qe.shape} but q_true has {qt.shape}")
-    if not np.isfinite(qe).all():
-        r = int(np.argwhere(~np.isfinite(qe))[0, 0])
-        raise ValueError(f"q_est row {r} is not finite: {qe[r].tolist()}")
-    use = _mask(movement, len(qe)) & np.isfinite(qt).all(axis=1)
-    if not use.any():
-        raise ValueError("no sample is both in a movement phase and has valid ground truth")
-    err = error_angles(qe[use], qt[use])
-    rmse = np.degrees(np.sqrt(np.mean(err * err, axis=0)))
-    return BroadRMSE(float(rmse[0]), float(rmse[1]), float(rmse[2]), int(use.sum()))
-
-
-def evaluate(rec: Recording, q_est: ArrayLike) -> BroadRMSE:
-    """:func:`benchmark_rmse` of an estimate (scalar-last, body -> NWU) against a loaded trial.
-
-    Uses ``rec.quat`` where ``rec.meta["gt_valid"]`` and ``rec.meta["movement"]`` are both true
-    (the benchmark's samples exactly).
-    """
-    try:
-        movement, valid = rec.meta["movement"], rec.meta["gt_valid"]
-    except KeyError as exc:
-        raise ValueError(f"recording {rec.name!r} has no meta[{exc.args[0]!r}]; load it with "
-                         "danae_lite.broad.load_trial") from None
-    q_true = np.where(np.asarray(valid, dtype=bool)[:, None], rec.quat, np.nan)
-    return benchmark_rmse(q_est, q_true, movement)
 
 
 # --- loading -----------------------------------------------------------------------------
@@ -372,9 +155,50 @@ def load_trial(path: str | Path, *, index: TrialIndex | None = None) -> Recordin
         positive number; ``trials.json`` does not list the trial. Every message names the file,
         the key and, where it applies, the row (0-based) and column.
     """
+    path = Path(path)
+    data = _read_mat(path)
+    gyr = _array(path, data, "imu_gyr", 3, None)
+    n = gyr.shape[0]
+    acc = _array(path, data, "imu_acc", 3, n)
+    mag = _array(path, data, "imu_mag", 3, n)
+    for key, arr in (("imu_gyr", gyr), ("imu_acc", acc), ("imu_mag", mag)):
+        _first_bad(path, key, arr)
+    q_xyzw, valid = _ground_truth(path, _array(path, data, "opt_quat", 4, n))
+    position = None
+    if "opt_pos" in data:
+        position = _array(path, data, "opt_pos", 3, n)
+        if np.isinf(position).any():
+            _first_bad(path, "opt_pos", np.where(np.isnan(position), 0.0, position), "a finite number or NaN")
+    info = "\n".join(str(s) for s in np.asarray(data["info"]).ravel()) if "info" in data else None
+    m = _TRIAL_RE.fullmatch(path.stem)
+    description, groups = _listing(path, index)
+    return Recording(
+        name=path.stem,
+        source="broad",
+        fs=_sampling_rate(path, data),
+        gyro=gyr,
+        acc=acc / G,
+        mag=mag,
+        quat=enu_to_nwu(_fill_gaps(q_xyzw, valid)),
+        meta={
+            "trial": int(m.group(1)) if m else None,
+            "movement": _movement(path, data, n),
+            "gt_valid": valid,
+            "gt_gaps": _runs(~valid),
+            "position": position,
+            "description": description,
+            "groups": groups,
+            "info": info,
+            "path": str(path),
+            "conventions": CONVENTIONS,
+        },
+    )
+
+
+def _read_mat(path: Path) -> dict[str, Any]:
+    """The variables of a trial file; DataError when it is missing, unreadable or lacks a key."""
     from scipy.io import loadmat
 
-    path = Path(path)
     if not path.is_file():
         raise DataError(f"{path}: BROAD trial file not found")
     try:
@@ -386,13 +210,13 @@ def load_trial(path: str | Path, *, index: TrialIndex | None = None) -> Recordin
         have = sorted(k for k in data if not k.startswith("__"))
         raise DataError(f"{path}: missing key(s) {', '.join(repr(k) for k in missing)}; a BROAD trial "
                         f"holds {', '.join(_REQUIRED)} (found: {', '.join(have) or 'nothing'})")
-    gyr = _array(path, data, "imu_gyr", 3, None)
-    n = gyr.shape[0]
-    acc = _array(path, data, "imu_acc", 3, n)
-    mag = _array(path, data, "imu_mag", 3, n)
-    for key, arr in (("imu_gyr", gyr), ("imu_acc", acc), ("imu_mag", mag)):
-        _first_bad(path, key, arr)
-    quat_wxyz = _array(path, data, "opt_quat", 4, n)
+    return data
+
+
+def _ground_truth(path: Path, quat_wxyz: Array) -> tuple[Array, NDArray[np.bool_]]:
+    """``opt_quat`` (w, x, y, z) checked and normalised to scalar-last, NaN on missing rows; and
+    the mask of valid rows."""
+    n = len(quat_wxyz)
     nan_rows: NDArray[np.bool_] = np.asarray(np.isnan(quat_wxyz).all(axis=1), dtype=bool)
     partly = ~np.isfinite(quat_wxyz) & ~nan_rows[:, None]
     if partly.any():
@@ -408,6 +232,12 @@ def load_trial(path: str | Path, *, index: TrialIndex | None = None) -> Recordin
         r = int(np.argmax(off))
         raise DataError(f"{path}: key 'opt_quat' row {r} has norm {norms[r]:.6g}; expected a unit "
                         f"quaternion (|norm - 1| <= {QUAT_NORM_TOL:g})")
+    q_xyzw = quat_wxyz[:, [1, 2, 3, 0]]
+    return np.where(valid[:, None], q_xyzw / np.where(norms > 0, norms, 1.0)[:, None], np.nan), valid
+
+
+def _movement(path: Path, data: Mapping[str, Any], n: int) -> NDArray[np.bool_]:
+    """``movement`` as (n,) bools; DataError unless it holds n values of 0 or 1."""
     mov_raw = np.asarray(data["movement"])
     if mov_raw.ndim == 2 and mov_raw.shape[1] == 1:
         mov_raw = mov_raw[:, 0]
@@ -419,60 +249,32 @@ def load_trial(path: str | Path, *, index: TrialIndex | None = None) -> Recordin
     if not01.any():
         r = int(np.argmax(not01))
         raise DataError(f"{path}: key 'movement' row {r} is {mov_raw[r].item()!r}; expected 0 or 1")
-    movement = mov_raw.astype(bool)
+    return mov_raw.astype(bool)
+
+
+def _sampling_rate(path: Path, data: Mapping[str, Any]) -> float:
+    """``sampling_rate`` [Hz]; DataError unless it is one positive number."""
     fs_raw = np.asarray(data["sampling_rate"])
     if fs_raw.size != 1 or fs_raw.dtype.kind not in "biuf":
         raise DataError(f"{path}: key 'sampling_rate' is {fs_raw!r}; expected one number [Hz]")
     fs = float(fs_raw.reshape(()))
     if not (math.isfinite(fs) and fs > 0):
         raise DataError(f"{path}: key 'sampling_rate' is {fs}; expected a positive number of Hz")
-    position = None
-    if "opt_pos" in data:
-        position = _array(path, data, "opt_pos", 3, n)
-        if np.isinf(position).any():
-            _first_bad(path, "opt_pos", np.where(np.isnan(position), 0.0, position), "a finite number or NaN")
-    info = None
-    if "info" in data:
-        raw_info = np.asarray(data["info"]).ravel()
-        info = "\n".join(str(s) for s in raw_info)
+    return fs
 
-    m = _TRIAL_RE.fullmatch(path.stem)
-    number = int(m.group(1)) if m else None
+
+def _listing(path: Path, index: TrialIndex | None) -> tuple[str | None, tuple[str, ...]]:
+    """The trial's description and groups from ``index`` (default: ``trials.json`` beside the
+    file, if any); DataError when the index does not list it."""
     if index is None:
         jp = path.parent / "trials.json"
         index = trial_index(jp) if jp.is_file() else None
-    description: str | None = None
-    groups: tuple[str, ...] = ()
-    if index is not None:
-        if path.stem not in index.trials:
-            raise DataError(f"{path}: trial {path.stem!r} is not listed in {index.path}; "
-                            f"expected one of its {len(index.trials)} trials")
-        description, groups = index.trials[path.stem]
-
-    q_xyzw = quat_wxyz[:, [1, 2, 3, 0]]
-    q_xyzw = np.where(valid[:, None], q_xyzw / np.where(norms > 0, norms, 1.0)[:, None], np.nan)
-    quat = enu_to_nwu(_fill_gaps(q_xyzw, valid))
-    return Recording(
-        name=path.stem,
-        source="broad",
-        fs=fs,
-        gyro=gyr,
-        acc=acc / G,
-        mag=mag,
-        quat=quat,
-        meta={
-            "trial": number,
-            "movement": movement,
-            "gt_valid": valid,
-            "gt_gaps": _runs(~valid),
-            "position": position,
-            "description": description,
-            "groups": groups,
-            "info": info,
-            "path": str(path),
-            "conventions": CONVENTIONS,
-        },
-    )
+    if index is None:
+        return None, ()
+    if path.stem not in index.trials:
+        raise DataError(f"{path}: trial {path.stem!r} is not listed in {index.path}; "
+                        f"expected one of its {len(index.trials)} trials")
+    return index.trials[path.stem]
 
 
 def data_mat_dir(root: str | Path) -> Path:
@@ -550,12 +352,7 @@ def trial_index(root: str | Path) -> TrialIndex:
     root = Path(root)
     path = root if root.is_file() else (root / "trials.json" if (root / "trials.json").is_file()
                                         else data_mat_dir(root) / "trials.json")
-    if not path.is_file():
-        raise DataError(f"{path}: trials.json not found")
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise DataError(f"{path}: not valid JSON ({exc})") from exc
+    doc = read_json(path, "trials.json")
     if not isinstance(doc, dict) or not isinstance(doc.get("groups"), list) or not isinstance(doc.get("trials"), dict):
         raise DataError(f"{path}: expected an object with a 'groups' list and a 'trials' object")
     groups = []
@@ -574,373 +371,3 @@ def trial_index(root: str | Path) -> TrialIndex:
 def trial_groups(root: str | Path) -> dict[str, tuple[str, ...]]:
     """Trial name -> its groups, from ``trials.json`` (see :func:`trial_index` for ``root``)."""
     return {name: gs for name, (_, gs) in trial_index(root).trials.items()}
-
-
-def group_means(per_trial: Mapping[str, Mapping[str, float]], index: TrialIndex,
-                metric: str = "total_rmse_deg") -> dict[str, tuple[float, int]]:
-    """Per group, the mean of ``metric`` over its trials present in ``per_trial`` and their count.
-
-    The benchmark's group figure is the plain mean of the per-trial RMSEs (not a pooled RMSE);
-    with a subset of the trials the means cover only the trials given. Groups with none of
-    them are left out.
-    """
-    out: dict[str, tuple[float, int]] = {}
-    for g, _, _ in index.groups:
-        vals = [float(per_trial[t][metric]) for t in index.members(g) if t in per_trial]
-        if vals:
-            out[g] = (float(np.mean(vals)), len(vals))
-    return out
-
-
-# --- the authors' published figures --------------------------------------------------------
-
-_PARAM_NAMES: dict[str, dict[str, str]] = {"madgwick": {"beta": "beta"}, "mahony": {"Kp": "k_P", "Ki": "k_I"}}
-
-
-@dataclass(frozen=True)
-class Published:
-    """The authors' ``results_<filter>_average_rmse.json``.
-
-    ``trials`` / ``groups``: figures with the one parameter set that minimises the mean total
-    RMSE over all 39 trials (the benchmark's "TAGP" parameters, ``parameters``);
-    ``trials_best`` / ``groups_best``: the per-trial (per-group) minimum over the authors'
-    parameter grid. Each figure is a dict keyed by :data:`METRICS` [deg]. ``params`` are the
-    TAGP parameters under this module's keyword names (``beta``; ``k_P``, ``k_I``).
-    """
-
-    filter: str
-    path: Path
-    parameters: dict[str, float]
-    params: dict[str, float]
-    trials: dict[str, dict[str, float]]
-    trials_best: dict[str, dict[str, float]]
-    groups: dict[str, dict[str, float]]
-    groups_best: dict[str, dict[str, float]]
-
-
-def _figures(path: Path, where: str, entry: Any) -> tuple[dict[str, float], dict[str, float]]:
-    out = []
-    for kind in ("tagp_parameters", "minimum_value"):
-        vals = entry.get(kind) if isinstance(entry, dict) else None
-        if not isinstance(vals, dict):
-            raise DataError(f"{path}: {where}['{kind}'] is missing; expected an object with {', '.join(METRICS)}")
-        fig = {}
-        for m in METRICS:
-            v = vals.get(m)
-            if not isinstance(v, (int, float)) or isinstance(v, bool) or not math.isfinite(v) or v < 0:
-                raise DataError(f"{path}: {where}['{kind}']['{m}'] is {v!r}; expected a non-negative number [deg]")
-            fig[m] = float(v)
-        out.append(fig)
-    return out[0], out[1]
-
-
-def published(filter_name: str, root: str | Path) -> Published:
-    """Load the authors' published figures for ``filter_name`` (``"madgwick"`` or ``"mahony"``).
-
-    ``root`` is the JSON file itself or the folder holding ``results_<filter>_average_rmse.json``
-    (the benchmark writes them to ``example_code/out``). Raises DataError naming the file and
-    the entry when it is missing or malformed; ValueError for an unknown filter.
-    """
-    if filter_name not in _PARAM_NAMES:
-        raise ValueError(f"unknown filter {filter_name!r}; the benchmark published {', '.join(_PARAM_NAMES)}")
-    root = Path(root)
-    path = root if root.suffix == ".json" else root / f"results_{filter_name}_average_rmse.json"
-    if not path.is_file():
-        raise DataError(f"{path}: published BROAD results not found")
-    try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise DataError(f"{path}: not valid JSON ({exc})") from exc
-    if not isinstance(doc, dict):
-        raise DataError(f"{path}: expected a JSON object")
-    for key in ("tagp_parameters", "trials", "groups"):
-        if not isinstance(doc.get(key), dict):
-            raise DataError(f"{path}: key '{key}' is missing or not an object")
-    names = _PARAM_NAMES[filter_name]
-    params_raw = doc["tagp_parameters"]
-    if set(params_raw) != set(names):
-        raise DataError(f"{path}: 'tagp_parameters' has {sorted(params_raw)}; expected {sorted(names)} "
-                        f"for {filter_name}")
-    for k, v in params_raw.items():
-        if not isinstance(v, (int, float)) or not math.isfinite(v):
-            raise DataError(f"{path}: 'tagp_parameters'['{k}'] is {v!r}; expected a number")
-    trials, trials_best, groups, groups_best = {}, {}, {}, {}
-    for name, entry in doc["trials"].items():
-        trials[name], trials_best[name] = _figures(path, f"trials['{name}']", entry)
-    for name, entry in doc["groups"].items():
-        groups[name], groups_best[name] = _figures(path, f"groups['{name}']", entry)
-    return Published(
-        filter=filter_name, path=path,
-        parameters={k: float(v) for k, v in params_raw.items()},
-        params={names[k]: float(v) for k, v in params_raw.items()},
-        trials=trials, trials_best=trials_best, groups=groups, groups_best=groups_best)
-
-
-# --- the benchmark's filters ------------------------------------------------------------------
-
-def benchmark_initial_quat(acc: ArrayLike, mag: ArrayLike) -> Array:
-    """The initial orientation the benchmark gives both filters, from one acc and mag sample.
-
-    Returns a scalar-last quaternion, to be read as body -> NWU like the filters' state. The
-    benchmark builds the matrix whose columns are ``x = -(horizontal part of mag)``,
-    ``y = up × x`` and ``z = up`` (``up`` = the accelerometer direction), all in body
-    coordinates, normalised, and uses the quaternion of that matrix as the state. This is the
-    earth-to-body rotation of a south-east-up frame; as a body -> NWU orientation it is right
-    only for a level sensor whose x axis points east (NWU yaw -90°); for another heading psi
-    it starts at 180° - psi (and mirrors the tilt). Every BROAD trial starts level with x
-    within 5° of east, so the initial error is 1-10°, which the filters remove before or during
-    the first movement phase; it is reproduced here because Mahony's heading converges slowly
-    enough (tens of seconds at k_P = 0.74) for the published figures to depend on it.
-    """
-    from scipy.spatial.transform import Rotation
-
-    up = np.asarray(acc, dtype=float).reshape(3)
-    m = np.asarray(mag, dtype=float).reshape(3)
-    x = -(m * np.dot(up, up) - up * np.dot(up, m))   # = (up × -m) × up
-    y = np.cross(up, x)
-    norms = [float(np.linalg.norm(v)) for v in (x, y, up)]
-    if not all(math.isfinite(v) and v > 1e-12 * max(1.0, float(np.linalg.norm(m)) ** 2) for v in norms):
-        raise ValueError(f"acc {up.tolist()} and mag {m.tolist()} must be finite, non-zero and not parallel")
-    cols = [v / nv for v, nv in zip((x, y, up), norms)]
-    q = Rotation.from_matrix(np.column_stack(cols)).as_quat()
-    return q if q[3] >= 0 else -q
-
-
-_Rows = list[list[float]]
-
-
-def _inputs(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs: float,
-            q0: ArrayLike | None) -> tuple[_Rows, _Rows, _Rows | None, float, Array]:
-    from .filters import _check
-
-    g, a, m = _check(gyro, acc, mag, fs)
-    if q0 is None:
-        if m is None:
-            raise ValueError("without mag, pass the initial orientation q0 (the benchmark's initialisation needs mag)")
-        q = benchmark_initial_quat(a[0], m[0])
-    else:
-        q = np.asarray(q0, dtype=float).reshape(4)
-        nq = float(np.linalg.norm(q))
-        if not (math.isfinite(nq) and nq > 0):
-            raise ValueError(f"q0 must be a non-zero finite quaternion (x, y, z, w), got {q.tolist()}")
-        q = q / nq
-    return g.tolist(), a.tolist(), (None if m is None else m.tolist()), 1.0 / float(fs), q
-
-
-def madgwick(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs: float, *, beta: float = 0.12,
-             q0: ArrayLike | None = None) -> Array:
-    """Madgwick's gradient-descent filter as BROAD runs it (x-io reference implementation).
-
-    Per sample, with the state q (body -> NWU): the rate ``q_dot = q * (0, gyro) / 2`` minus
-    ``beta`` times the normalised gradient of ``|f|²/2``, where f stacks ``R(q).T @ [0,0,1] - a``
-    and ``R(q).T @ b - m`` (a, m normalised), ``h = R(q) @ m`` and, as in the reference code,
-    ``b = (sqrt(hx² + hy²), 0, hz) / 2``: the predicted field is half the measured one (the
-    paper and ``ahrs`` use the full size; this changes the figures by up to 44 % on BROAD).
-    Then ``q += q_dot / fs`` and q is normalised. A zero acc row gives no correction; a zero
-    mag row (or ``mag=None``) the accelerometer-only gradient. A sample is never skipped (``ahrs``
-    skips rows with an exactly zero gyro).
-
-    Parameters
-    ----------
-    gyro : (N, 3) [rad/s]; acc : (N, 3) any unit (only its direction is used; at rest it points
-    up); mag : (N, 3) any unit, or None; fs : [Hz]; beta : gain [rad/s] (BROAD's common best
-    0.12); q0 : initial state, scalar-last, body -> NWU; default :func:`benchmark_initial_quat`
-    of the first sample. The first output is the state after the first sample, as in the
-    benchmark.
-
-    Returns
-    -------
-    (N, 4) quaternions, scalar-last ``[x, y, z, w]``, body -> NWU (as :mod:`danae_lite.filters`).
-    """
-    G_, A_, M_, dt, q = _inputs(gyro, acc, mag, fs, q0)
-    beta = float(beta)
-    x, y, z, w = (float(v) for v in q)
-    out = np.empty((len(G_), 4))
-    sqrt = math.sqrt
-    for i, (gx, gy, gz) in enumerate(G_):
-        dw = 0.5 * (-x * gx - y * gy - z * gz)
-        dx = 0.5 * (w * gx + y * gz - z * gy)
-        dy = 0.5 * (w * gy - x * gz + z * gx)
-        dz = 0.5 * (w * gz + x * gy - y * gx)
-        ax, ay, az = A_[i]
-        if ax != 0.0 or ay != 0.0 or az != 0.0:
-            na = 1.0 / sqrt(ax * ax + ay * ay + az * az)
-            ax *= na
-            ay *= na
-            az *= na
-            # third row of R(q) = the up axis seen from the body; residuals of the accelerometer
-            r31 = 2.0 * (x * z - w * y)
-            r32 = 2.0 * (y * z + w * x)
-            r33 = 1.0 - 2.0 * (x * x + y * y)
-            f1, f2, f3 = r31 - ax, r32 - ay, r33 - az
-            s0 = -2.0 * y * f1 + 2.0 * x * f2
-            s1 = 2.0 * z * f1 + 2.0 * w * f2 - 4.0 * x * f3
-            s2 = -2.0 * w * f1 + 2.0 * z * f2 - 4.0 * y * f3
-            s3 = 2.0 * x * f1 + 2.0 * y * f2
-            mrow = None if M_ is None else M_[i]
-            if mrow is not None and (mrow[0] != 0.0 or mrow[1] != 0.0 or mrow[2] != 0.0):
-                mx, my, mz = mrow
-                nm = 1.0 / sqrt(mx * mx + my * my + mz * mz)
-                mx *= nm
-                my *= nm
-                mz *= nm
-                r11 = 1.0 - 2.0 * (y * y + z * z)
-                r12 = 2.0 * (x * y - w * z)
-                r13 = 2.0 * (x * z + w * y)
-                r21 = 2.0 * (x * y + w * z)
-                r22 = 1.0 - 2.0 * (x * x + z * z)
-                r23 = 2.0 * (y * z - w * x)
-                hx = r11 * mx + r12 * my + r13 * mz
-                hy = r21 * mx + r22 * my + r23 * mz
-                hz = r31 * mx + r32 * my + r33 * mz
-                bx = 0.5 * sqrt(hx * hx + hy * hy)
-                bz = 0.5 * hz
-                f4 = r11 * bx + r31 * bz - mx
-                f5 = r12 * bx + r32 * bz - my
-                f6 = r13 * bx + r33 * bz - mz
-                s0 += -2.0 * bz * y * f4 + (2.0 * bz * x - 2.0 * bx * z) * f5 + 2.0 * bx * y * f6
-                s1 += 2.0 * bz * z * f4 + (2.0 * bx * y + 2.0 * bz * w) * f5 + (2.0 * bx * z - 4.0 * bz * x) * f6
-                s2 += ((-4.0 * bx * y - 2.0 * bz * w) * f4 + (2.0 * bx * x + 2.0 * bz * z) * f5
-                       + (2.0 * bx * w - 4.0 * bz * y) * f6)
-                s3 += (2.0 * bz * x - 4.0 * bx * z) * f4 + (2.0 * bz * y - 2.0 * bx * w) * f5 + 2.0 * bx * x * f6
-            ns = sqrt(s0 * s0 + s1 * s1 + s2 * s2 + s3 * s3)
-            if ns > 0.0:
-                k = beta / ns
-                dw -= k * s0
-                dx -= k * s1
-                dy -= k * s2
-                dz -= k * s3
-        w += dw * dt
-        x += dx * dt
-        y += dy * dt
-        z += dz * dt
-        nq = 1.0 / sqrt(w * w + x * x + y * y + z * z)
-        w *= nq
-        x *= nq
-        y *= nq
-        z *= nq
-        out[i, 0] = x
-        out[i, 1] = y
-        out[i, 2] = z
-        out[i, 3] = w
-    return out
-
-
-def mahony(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs: float, *, k_P: float = 0.74,
-           k_I: float = 0.0012, q0: ArrayLike | None = None) -> Array:
-    """Mahony's explicit complementary filter as BROAD runs it (x-io reference implementation).
-
-    Per sample, with the state q (body -> NWU) and a, m normalised: the predicted up axis
-    ``v = R(q).T @ [0,0,1]`` and field ``u = R(q).T @ b`` with ``h = R(q) @ m``,
-    ``b = (sqrt(hx² + hy²), 0, hz)``; the error ``e = a × v + m × u``; the integral
-    ``i += k_I * e / fs`` (kept at 0 when ``k_I = 0``); the corrected rate
-    ``omega = gyro + i + k_P * e``; then ``q += q * (0, omega) / (2 fs)`` and q is normalised.
-    A zero acc row gives no correction at all (and the integral is neither updated nor
-    applied); a zero mag row (or ``mag=None``) uses ``e = a × v``. The gains are those of
-    ``ahrs``'s Mahony and of the benchmark's files (``Kp``, ``Ki``); the reference code stores
-    ``2 Kp`` and ``2 Ki`` against half-size vectors, which is the same filter.
-
-    Parameters
-    ----------
-    gyro : (N, 3) [rad/s]; acc, mag : (N, 3) any unit (directions only), mag may be None;
-    fs : [Hz]; k_P : proportional gain [rad/s] (BROAD's common best 0.74); k_I : integral gain
-    [rad/s²] (0.0012); q0 : initial state, scalar-last, body -> NWU; default
-    :func:`benchmark_initial_quat` of the first sample.
-
-    Returns
-    -------
-    (N, 4) quaternions, scalar-last ``[x, y, z, w]``, body -> NWU.
-    """
-    G_, A_, M_, dt, q = _inputs(gyro, acc, mag, fs, q0)
-    kp, ki = float(k_P), float(k_I)
-    x, y, z, w = (float(v) for v in q)
-    ix = iy = iz = 0.0
-    out = np.empty((len(G_), 4))
-    sqrt = math.sqrt
-    for i, (gx, gy, gz) in enumerate(G_):
-        ax, ay, az = A_[i]
-        if ax != 0.0 or ay != 0.0 or az != 0.0:
-            na = 1.0 / sqrt(ax * ax + ay * ay + az * az)
-            ax *= na
-            ay *= na
-            az *= na
-            vx = 2.0 * (x * z - w * y)
-            vy = 2.0 * (y * z + w * x)
-            vz = 1.0 - 2.0 * (x * x + y * y)
-            ex = ay * vz - az * vy
-            ey = az * vx - ax * vz
-            ez = ax * vy - ay * vx
-            mrow = None if M_ is None else M_[i]
-            if mrow is not None and (mrow[0] != 0.0 or mrow[1] != 0.0 or mrow[2] != 0.0):
-                mx, my, mz = mrow
-                nm = 1.0 / sqrt(mx * mx + my * my + mz * mz)
-                mx *= nm
-                my *= nm
-                mz *= nm
-                r11 = 1.0 - 2.0 * (y * y + z * z)
-                r12 = 2.0 * (x * y - w * z)
-                r13 = 2.0 * (x * z + w * y)
-                r21 = 2.0 * (x * y + w * z)
-                r22 = 1.0 - 2.0 * (x * x + z * z)
-                r23 = 2.0 * (y * z - w * x)
-                hx = r11 * mx + r12 * my + r13 * mz
-                hy = r21 * mx + r22 * my + r23 * mz
-                hz = vx * mx + vy * my + vz * mz
-                bx = sqrt(hx * hx + hy * hy)
-                ux = r11 * bx + vx * hz
-                uy = r12 * bx + vy * hz
-                uz = r13 * bx + vz * hz
-                ex += my * uz - mz * uy
-                ey += mz * ux - mx * uz
-                ez += mx * uy - my * ux
-            if ki > 0.0:
-                ix += ki * ex * dt
-                iy += ki * ey * dt
-                iz += ki * ez * dt
-                gx += ix
-                gy += iy
-                gz += iz
-            else:
-                ix = iy = iz = 0.0
-            gx += kp * ex
-            gy += kp * ey
-            gz += kp * ez
-        hx_, hy_, hz_ = 0.5 * dt * gx, 0.5 * dt * gy, 0.5 * dt * gz
-        w, x, y, z = (w - x * hx_ - y * hy_ - z * hz_,
-                      x + w * hx_ + y * hz_ - z * hy_,
-                      y + w * hy_ - x * hz_ + z * hx_,
-                      z + w * hz_ + x * hy_ - y * hx_)
-        nq = 1.0 / sqrt(w * w + x * x + y * y + z * z)
-        w *= nq
-        x *= nq
-        y *= nq
-        z *= nq
-        out[i, 0] = x
-        out[i, 1] = y
-        out[i, 2] = z
-        out[i, 3] = w
-    return out
-
-
-BENCHMARK_FILTERS: dict[str, Callable[..., Array]] = {"madgwick": madgwick, "mahony": mahony}
-"""The two filters of the benchmark's case study, by name."""
-PUBLISHED_PARAMS: dict[str, dict[str, float]] = {
-    "madgwick": {"beta": 0.12},
-    "mahony": {"k_P": 0.74, "k_I": 0.0012},
-}
-"""The authors' common ("TAGP") parameters, best mean total RMSE over all 39 trials."""
-
-
-def run_benchmark_filter(name: str, rec: Recording, *, use_mag: bool = True, **params: Any) -> Array:
-    """Run benchmark filter ``name`` on a recording; returns (N, 4) ``[x, y, z, w]``, body -> NWU.
-
-    ``params`` default to :data:`PUBLISHED_PARAMS`; ``use_mag=False`` runs the 6D variant
-    (then pass ``q0``; judge it by the inclination RMSE, the heading being unobservable).
-    """
-    try:
-        fn = BENCHMARK_FILTERS[name]
-    except KeyError:
-        raise ValueError(f"unknown benchmark filter {name!r}; choose one of {', '.join(BENCHMARK_FILTERS)}") from None
-    kwargs: dict[str, Any] = {**PUBLISHED_PARAMS[name], **params}
-    return fn(rec.gyro, rec.acc, rec.mag if use_mag else None, rec.fs, **kwargs)
-

@@ -50,7 +50,7 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .config import CACHE_ENV, DATA_ENV, FAST_ENV, FAST_EPOCHS, FAST_MAX_STEPS, JOBS_ENV
+from .config import CACHE_ENV, DATA_ENV, FAST_ENV, FAST_EPOCHS, FAST_MAX_STEPS, FAST_SEEDS, FULL_SEEDS, JOBS_ENV
 from .datasets import (BROAD_TEST_GROUP, BROAD_TRAIN_GROUP, FAST_BROAD_SAMPLES, FAST_DURATION, FAST_SAMPLES,
                        OXIOD_TEST, OXIOD_TRAIN, PAPER_SPLIT_FOLDER, PAPER_SPLIT_TEST, PAPER_SPLIT_TRAIN,
                        TRAIN_FRACTION)
@@ -70,7 +70,6 @@ PAPER_EPOCHS: dict[str, int] = {"oxiod": 1, "ucs": 100, "broad": 1}
 """Training epochs stated in the paper (BROAD: the OxIOD setting)."""
 LEADERBOARD_ONLY = ("broad",)
 """Experiments the paper did not run: ``leaderboard`` only, no ``reproduce``."""
-DEFAULT_SEEDS = (0, 1, 2)
 _IMU_RE = re.compile(r"imu(\d+)\.csv")
 
 
@@ -235,8 +234,9 @@ def _add_common(p: argparse.ArgumentParser, command: str) -> None:
     p.add_argument("--split", choices=("default", "paper"), default="default",
                    help="oxiod only: 'paper' takes the paper's own split from the slow-walking set (see 'data "
                         "selection' below). Default: the book's handheld split")
-    p.add_argument("--seeds", metavar="SEED", nargs="+", type=_seed, default=list(DEFAULT_SEEDS),
-                     help="training seeds; one network per angle and seed. Default: 0 1 2")
+    p.add_argument("--seeds", metavar="SEED", nargs="+", type=_seed, default=None,
+                     help=f"training seeds; one network per angle and seed. Default: {' '.join(map(str, FULL_SEEDS))}, "
+                          f"in fast mode {' '.join(map(str, FAST_SEEDS))}")
     p.add_argument("--epochs", metavar="N", type=_positive_int, default=None,
                      help=f"training epochs per network. Default: the paper's ({PAPER_EPOCHS['oxiod']} for oxiod, "
                           f"{PAPER_EPOCHS['ucs']} for ucs), at most {FAST_EPOCHS} in fast mode")
@@ -273,7 +273,7 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     args.argv = list(sys.argv[1:] if argv is None else argv)
     from .recording import DataError
-    from .train import CheckpointError
+    from .checkpoints import CheckpointError
 
     try:
         return leaderboard(args) if args.command == "leaderboard" else reproduce(args)
@@ -310,19 +310,6 @@ def _oxiod_files(items: Sequence[str], flag: str) -> list[Path]:
         else:
             out.append(p)
     return out
-
-
-def _load_oxiod(paths: Sequence[Path], fast: bool) -> list[Any]:
-    """Load OxIOD files; fast mode keeps the first FAST_SAMPLES samples of each."""
-    from . import oxiod
-
-    recs = []
-    for p in paths:
-        rec = oxiod.load_recording(p)
-        if fast and len(rec) > FAST_SAMPLES:
-            rec = rec.slice(0, FAST_SAMPLES, name=rec.name)
-        recs.append(rec)
-    return recs
 
 
 def _ucs_path(items: Sequence[str], flag: str) -> list[Path]:
@@ -373,13 +360,12 @@ def _paper_split(args: argparse.Namespace, name: str, base: Path | None) -> argp
                                  "test": [str(syn / f"imu{k}.csv") for k in PAPER_SPLIT_TEST]})
 
 
-def load_data(args: argparse.Namespace, fast: bool) -> Any:
+def load_data(args: argparse.Namespace, settings: RunSettings) -> Any:
     """Resolve the experiment's recordings from the arguments; returns a datasets.Experiment."""
     from . import datasets, ucs
-    from .config import data_dir as resolve_data_dir
 
-    name = args.experiment
-    base = resolve_data_dir(args.data_dir)  # FileNotFoundError for a missing folder
+    name, fast = args.experiment, settings.fast
+    base = settings.data_dir  # --data-dir, else $DANAE_DATA (resolved, checked) or None
     if getattr(args, "split", "default") == "paper":
         args = _paper_split(args, name, base)
     if args.data_dir is not None and args.train is None and args.test is None:
@@ -417,24 +403,30 @@ def load_data(args: argparse.Namespace, fast: bool) -> Any:
     # oxiod with explicit files; a side left out comes from the data directory's defaults
     syn = None
     if args.train is None or args.test is None:
-        root = datasets.oxiod_root(base) if base is not None else None
-        if root is None:
-            given = "--test" if args.train is None else "--train"
-            missing = "--train" if args.train is None else "--test"
-            where = f"{base}/oxiod" if base is not None else f"a data directory (--data-dir or ${DATA_ENV})"
-            raise UsageError(f"{given} given without {missing}, and no default recordings found in {where}")
-        syn = root.joinpath(*datasets.OXIOD_FOLDER, "syn")
+        syn = _default_root(args, base, "oxiod", "recordings").joinpath(*datasets.OXIOD_FOLDER, "syn")
     train_p = (_oxiod_files(args.train, "--train") if args.train is not None
                else [syn / f"imu{k}.csv" for k in datasets.OXIOD_TRAIN])
     test_p = (_oxiod_files(args.test, "--test") if args.test is not None
               else [syn / f"imu{k}.csv" for k in datasets.OXIOD_TEST])
-    train, test = _unique_names(_load_oxiod(train_p, fast), _load_oxiod(test_p, fast))
-    cut = f" (fast mode: first {datasets.FAST_SAMPLES} samples each)" if fast else ""
+    train, test = _unique_names(datasets.load_oxiod_files(train_p, fast), datasets.load_oxiod_files(test_p, fast))
+    cut = datasets.fast_note(fast, FAST_SAMPLES)
     note = (f"OxIOD files: train {', '.join(r.name for r in train)}; test {', '.join(r.name for r in test)}{cut}.")
     overlap = {p.resolve() for p in train_p} & {p.resolve() for p in test_p}
     if overlap:
         note += f" Warning: {', '.join(map(str, sorted(overlap)))} is used for training and testing."
     return datasets.Experiment("oxiod", "real", train, test, note)
+
+
+def _default_root(args: argparse.Namespace, base: Path | None, name: str, what: str) -> Path:
+    """``<data dir>/<name>`` for the side of ``--train``/``--test`` left out; UsageError when absent."""
+    from . import datasets
+
+    root = {"oxiod": datasets.oxiod_root, "broad": datasets.broad_root}[name](base) if base is not None else None
+    if root is None:
+        given, missing = ("--test", "--train") if args.train is None else ("--train", "--test")
+        where = f"{base}/{name}" if base is not None else f"a data directory (--data-dir or ${DATA_ENV})"
+        raise UsageError(f"{given} given without {missing}, and no default {what} found in {where}")
+    return root
 
 
 def _broad_trial_files(items: Sequence[str], flag: str) -> list[Path]:
@@ -458,31 +450,23 @@ def _broad_trial_files(items: Sequence[str], flag: str) -> list[Path]:
 
 def _broad_files(args: argparse.Namespace, base: Path | None, fast: bool) -> Any:
     """BROAD trials named by ``--train``/``--test``; a side left out takes the data directory's default."""
-    from . import broad, datasets
+    from . import datasets
 
     default = None
     if args.train is None or args.test is None:
-        root = datasets.broad_root(base) if base is not None else None
-        if root is None:
-            given = "--test" if args.train is None else "--train"
-            missing = "--train" if args.train is None else "--test"
-            where = f"{base}/broad" if base is not None else f"a data directory (--data-dir or ${DATA_ENV})"
-            raise UsageError(f"{given} given without {missing}, and no default trials found in {where}")
+        _default_root(args, base, "broad", "trials")
         default = datasets.load_experiment("broad", base, fast=fast, verbose=False)
 
     def load(items: Sequence[str] | None, flag: str, fallback: list[Any]) -> tuple[list[Path], list[Any]]:
         if items is None:
             return [], fallback
         paths = _broad_trial_files(items, flag)
-        recs = [broad.load_trial(p) for p in paths]
-        if fast:
-            recs = [r.slice(0, FAST_BROAD_SAMPLES, name=r.name) if len(r) > FAST_BROAD_SAMPLES else r for r in recs]
-        return paths, recs
+        return paths, datasets.load_broad_files(paths, fast)
 
     train_p, train = load(args.train, "--train", default.train if default else [])
     test_p, test = load(args.test, "--test", default.test if default else [])
     train, test = _unique_names(train, test)
-    cut = f" (fast mode: first {FAST_BROAD_SAMPLES} samples each)" if fast else ""
+    cut = datasets.fast_note(fast, FAST_BROAD_SAMPLES)
     note = f"BROAD trials: train {', '.join(r.name for r in train)}; test {', '.join(r.name for r in test)}{cut}."
     overlap = {p.resolve() for p in train_p} & {p.resolve() for p in test_p}
     if overlap:
@@ -496,7 +480,7 @@ def _broad_files(args: argparse.Namespace, base: Path | None, fast: bool) -> Any
 def _check_device(device: str | None) -> str:
     import torch
 
-    from .config import default_device
+    from .seeding import default_device
 
     try:
         dev = torch.device(default_device(device))
@@ -535,13 +519,13 @@ def _prepare(args: argparse.Namespace) -> tuple[RunSettings, Path, Any, TrainCon
     """Shared start of both subcommands: run settings, output folder, data, training settings."""
     from .config import RunSettings
 
-    seeds = [int(s) for s in args.seeds]
-    if len(set(seeds)) != len(seeds):
+    seeds = None if args.seeds is None else tuple(int(s) for s in args.seeds)  # None: the mode's default
+    if seeds is not None and len(set(seeds)) != len(seeds):
         raise UsageError(f"--seeds {' '.join(map(str, seeds))}: each seed may appear only once")
     device = _check_device(args.device)
     try:
-        settings = RunSettings.from_env(fast=args.fast, cache=args.cache, n_jobs=args.jobs, seeds=tuple(seeds),
-                                        device=device)
+        settings = RunSettings.from_env(fast=args.fast, data=args.data_dir, cache=args.cache, n_jobs=args.jobs,
+                                        seeds=seeds, device=device)
     except ValueError as err:  # an unrecognised DANAE_FAST or DANAE_JOBS value
         raise UsageError(str(err)) from None
     out_dir = _out_dir(args)
@@ -553,7 +537,7 @@ def _prepare(args: argparse.Namespace) -> tuple[RunSettings, Path, Any, TrainCon
 
     from . import pipeline
 
-    exp = load_data(args, settings.fast)
+    exp = load_data(args, settings)
     if args.threads:
         torch.set_num_threads(args.threads)
     config = _train_config(args, settings)
@@ -643,7 +627,7 @@ def folds(args: argparse.Namespace) -> int:
     settings, out_dir, _, config = _prepare(args)
     methods = args.methods or _method_names()
     if args.experiment == "oxiod":
-        motions = datasets.load_motions(args.data_dir or settings.data_dir, fast=settings.fast, verbose=False)
+        motions = datasets.load_motions(settings.data_dir, fast=settings.fast, verbose=False)
         recs = motions.recordings
         splits = [s for m, r in recs.items() if len(r) > 1 for s in crossval.leave_one_out(r, m)]
         others = {m: r for m, r in recs.items() if m != "handheld"}
@@ -651,7 +635,7 @@ def folds(args: argparse.Namespace) -> int:
             splits.append(crossval.transfer(recs["handheld"], others, "handheld"))
         note, data, aligned = motions.note, motions.data, False
     else:
-        exp = load_data(args, settings.fast)
+        exp = load_data(args, settings)
         splits, note, data, aligned = [crossval.broad_transfer(exp.train, exp.test)], exp.note, exp.data, True
     print(note)
     print(f"folds {args.experiment} | data: {data} | mode: {'fast' if settings.fast else 'full'} | {len(splits)} "

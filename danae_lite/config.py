@@ -22,17 +22,16 @@ takes its settings as arguments and never reads the environment.
 """
 from __future__ import annotations
 
-import inspect
 import os
-import random
 from dataclasses import dataclass, field, replace
+from collections.abc import Mapping
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
-import numpy as np
+from .datasets import existing_dir
+from .seeding import default_device
+from .train import TrainConfig
 
-if TYPE_CHECKING:
-    from .train import TrainConfig
 
 FAST_ENV = "DANAE_FAST"
 DATA_ENV = "DANAE_DATA"
@@ -66,50 +65,26 @@ def data_dir(path: str | os.PathLike[str] | None = None) -> Path | None:
     not exist raises ``FileNotFoundError`` (a user who names a directory means it); an
     environment variable that points nowhere also raises. Returns ``None`` when neither is set.
     """
-    if path is None:
-        env = os.environ.get(DATA_ENV, "").strip()
-        if not env:
-            return None
-        path, origin = env, f"${DATA_ENV}"
-    else:
-        origin = "data directory argument"
-    p = Path(path).expanduser().resolve()
+    if path is not None:
+        return existing_dir(path)
+    env = os.environ.get(DATA_ENV, "").strip()
+    if not env:
+        return None
+    p = Path(env).expanduser().resolve()
     if not p.is_dir():
-        raise FileNotFoundError(f"{origin} points to {p}, which is not a directory")
+        raise FileNotFoundError(f"${DATA_ENV} points to {p}, which is not a directory")
     return p
 
 
 def cache_dir(path: str | os.PathLike[str] | None = None) -> Path | None:
     """Directory for cached trained networks: ``path`` if given, else ``DANAE_CACHE``, else None.
 
-    The directory is created when needed.
+    The directory is created when the first network is stored in it.
     """
     raw = str(path) if path is not None else os.environ.get(CACHE_ENV, "").strip()
     if not raw:
         return None
-    p = Path(raw).expanduser().resolve()
-    p.mkdir(parents=True, exist_ok=True)
-    return p
-
-
-def seed_everything(seed: int = DEFAULT_SEED) -> None:
-    """Seed python's ``random``, numpy's global generator and torch (CPU and CUDA)."""
-    random.seed(seed)
-    np.random.seed(seed)
-    try:
-        import torch
-    except ImportError:  # torch is a dependency, but keep the data layer importable without it
-        return
-    torch.manual_seed(seed)
-
-
-def default_device(requested: str | None = None) -> str:
-    """Return ``requested`` if given, else ``"cuda"`` when available, else ``"cpu"``."""
-    if requested:
-        return requested
-    import torch
-
-    return "cuda" if torch.cuda.is_available() else "cpu"
+    return Path(raw).expanduser().resolve()
 
 
 def jobs(value: int | None = None) -> int:
@@ -126,9 +101,21 @@ def jobs(value: int | None = None) -> int:
     return n
 
 
-def seeding_source() -> str:
-    """The source of :func:`seed_everything`: part of a trained network's cache key."""
-    return inspect.getsource(seed_everything)
+def kernel_environment(*, data_dir: Path | None, cache: Path | None, fast: bool, n_jobs: int,
+                       base: Mapping[str, str] | None = None) -> dict[str, str]:
+    """The environment of a child process (a chapter's kernel) that is to run with these settings.
+
+    ``base`` (default: this process's environment) without any ``DANAE_*`` variable, plus ``DANAE_FAST``,
+    ``DANAE_JOBS`` and, when set, ``DANAE_DATA`` and ``DANAE_CACHE``: what the child's
+    :meth:`RunSettings.from_env` reads back.
+    """
+    env = {k: v for k, v in (os.environ if base is None else base).items() if not k.startswith("DANAE_")}
+    env.update({FAST_ENV: "1" if fast else "0", JOBS_ENV: str(n_jobs)})
+    if data_dir is not None:
+        env[DATA_ENV] = str(data_dir)
+    if cache is not None:
+        env[CACHE_ENV] = str(cache)
+    return env
 
 
 FAST_MAX_STEPS = 300
@@ -187,8 +174,6 @@ class RunSettings:
         """``base`` (default the paper's :class:`~danae_lite.train.TrainConfig`) with
         ``overrides``, this run's device, and in fast mode at most :data:`FAST_EPOCHS` epochs
         and :data:`FAST_MAX_STEPS` steps per network."""
-        from .train import TrainConfig
-
         cfg = replace(base or TrainConfig(), **overrides)
         if cfg.device is None:
             cfg = replace(cfg, device=self.device)

@@ -27,27 +27,29 @@ import json
 import os
 import time
 from collections.abc import Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor
-from dataclasses import dataclass, field
-from multiprocessing import get_context
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 import pandas as pd
 
-from . import broad, metrics
-from .angles import ANGLES, euler_to_quat
-from .baselines import METHODS, Method
+from . import broad_benchmark, metrics
+from .angles import ANGLES
 from .datasets import Experiment
+from .leaderboard import Leaderboard, run_leaderboard, trial_figures
+from .methods import Method
+from .networks import in_processes, threads_per_process
 from .recording import Recording
+from .registry import METHODS
+from .scoring import plain, score_rows
 from .train import TrainConfig
 
 ROW_COLUMNS: tuple[str, ...] = ("split", "protocol", "group", "test", "method", "causal", "samples", "angle",
                                 "mean_dev", "max_dev", "rmse", "rmse_seed_std", "n", "seeds")
 """Columns of :attr:`CrossValidation.rows` (``folds.csv``): metrics [rad] of one held-out
 recording, mean over seeds (``rmse_seed_std``: their sample std, NaN with one seed)."""
-TRIAL_COLUMNS: tuple[str, ...] = ("split", "protocol", "group", "test", "method", "causal", *broad.METRICS, "seeds")
+TRIAL_COLUMNS: tuple[str, ...] = ("split", "protocol", "group", "test", "method", "causal", *broad_benchmark.METRICS, "seeds")
 """Columns of :attr:`CrossValidation.trials` (``folds_broad.csv``): the BROAD benchmark's figures [deg]."""
 
 NO_HARM_COLUMNS: tuple[str, ...] = ("split", "protocol", "group", "test", "quantity", "filter", "corrector",
@@ -182,7 +184,7 @@ class CrossValidation:
         rows = []
         for m, g in self.trials.groupby("method", sort=False):
             row: dict[str, Any] = {"method": m, "causal": bool(g.causal.iloc[0])}
-            for k in broad.METRICS:
+            for k in broad_benchmark.METRICS:
                 v = g[k].to_numpy(float)
                 row[f"{k}"], row[f"{k}_std"] = metrics.spread(v) if np.isfinite(v).all() else (np.nan, np.nan)
             row["n"] = len(g)
@@ -218,7 +220,7 @@ class CrossValidation:
         t = self._select(samples, None)
         tables = [(t.assign(quantity=t.angle + " RMSE [rad]"), "rmse")]
         if not self.trials.empty:
-            for k in broad.METRICS:
+            for k in broad_benchmark.METRICS:
                 name = k.replace("_rmse_deg", "") + " RMSE [deg]"
                 tables.append((self.trials.assign(quantity=name, value=self.trials[k]), "value"))
         for table, col in tables:
@@ -278,7 +280,8 @@ class CrossValidation:
         return paths
 
 
-def _recording_rows(split: Split, board: Any, benchmark: bool) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
+def _recording_rows(split: Split, board: Leaderboard,
+                    benchmark: bool) -> tuple[list[dict[str, Any]], list[dict[str, Any]]]:
     """Per held-out recording: the paper's metrics per subset and angle and, with ``benchmark``
     (BROAD), the benchmark's figures over ``meta["movement"]`` and ``meta["gt_valid"]`` (every
     sample when a recording has neither, e.g. a simulated stand-in)."""
@@ -289,54 +292,28 @@ def _recording_rows(split: Split, board: Any, benchmark: bool) -> tuple[list[dic
             base = {"split": split.name, "protocol": split.protocol, "group": split.groups[rec.name],
                     "test": rec.name, "method": name, "causal": causal}
             preds = per_test[rec.name]
-            for subset, sel in (("all", np.ones(len(rec), dtype=bool)), ("clean", board.clean[rec.name])):
-                for k, a in enumerate(ANGLES):
-                    row = {**base, "samples": subset, "angle": a, "n": int(sel.sum()), "seeds": len(preds)}
-                    per_seed = [metrics.metric_table(p[sel, k], rec.euler[sel, k], angles=(a,))[a]
-                                for p in preds if not np.isnan(p[:, k]).all()]
-                    for m in metrics.METRICS:
-                        row[m] = metrics.spread([s[m] for s in per_seed])[0] if per_seed else np.nan
-                    row["rmse_seed_std"] = metrics.spread([s["rmse"] for s in per_seed])[1] if per_seed else np.nan
-                    rows.append(row)
+            for row in score_rows(preds, rec.euler, board.clean[rec.name]):
+                row["rmse_seed_std"] = row.pop("rmse_std")
+                rows.append({**base, **row, "seeds": len(preds)})
             if benchmark:
-                n = len(rec)
-                movement = np.asarray(rec.meta.get("movement", np.ones(n, dtype=bool)), dtype=bool)
-                valid = np.asarray(rec.meta.get("gt_valid", np.ones(n, dtype=bool)), dtype=bool)
-                figs = []
-                for p in preds:
-                    e = np.array(p, dtype=float)
-                    no_heading = bool(np.isnan(e[:, 2]).all())
-                    if no_heading:
-                        e[:, 2] = rec.euler[:, 2]
-                    f = broad.benchmark_rmse(euler_to_quat(e), np.where(valid[:, None], rec.quat, np.nan),
-                                             movement).as_dict()
-                    if no_heading:
-                        f["total_rmse_deg"] = f["heading_rmse_deg"] = np.nan
-                    figs.append(f)
-                trials.append({**base, **{m: float(np.mean([f[m] for f in figs])) for m in broad.METRICS},
-                               "seeds": len(figs)})
+                figures, _ = trial_figures(rec, preds)
+                trials.append({**base, **{m: mean for m, (mean, _) in figures.items()}, "seeds": len(preds)})
     return rows, trials
 
 
 def _run_one(split: Split, name: str, data: str, aligned: bool, methods: Sequence[str], extra: Sequence[Method],
              seeds: Sequence[int], train_config: TrainConfig, cache: str | os.PathLike[str] | None,
              jobs: int) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[dict[str, Any]], float]:
-    from .leaderboard import run_leaderboard
-
+    """Fit and score every method on one split: its rows, BROAD trials and chosen parameters
+    (:func:`_recording_rows`) and its wall time [s]."""
     t0 = time.perf_counter()
     exp = Experiment(name, data, list(split.train), list(split.test), split.name, aligned=aligned)
     board = run_leaderboard(exp, methods=methods, extra=[copy.deepcopy(m) for m in extra], seeds=seeds,
                             train_config=train_config, cache=cache, progress=False, jobs=jobs)
     rows, trials = _recording_rows(split, board, benchmark=name == "broad")
-    params = [{"split": split.name, "method": n, "params": json.dumps(_plain(m.params), sort_keys=True)}
+    params = [{"split": split.name, "method": n, "params": json.dumps(plain(m.params), sort_keys=True)}
               for n, m in board.methods.items()]
     return rows, trials, params, time.perf_counter() - t0
-
-
-def _init_worker(threads: int) -> None:
-    import torch
-
-    torch.set_num_threads(threads)
 
 
 def run_splits(
@@ -380,14 +357,12 @@ def run_splits(
     common = (name, data, aligned, tuple(methods), tuple(extra), tuple(int(s) for s in seeds))
     bar = tqdm(total=len(splits), desc=f"{name} splits", unit="split", disable=not progress)
     if jobs > 1 and len(splits) > 1:
-        threads = max(1, (os.cpu_count() or 1) // jobs)
+        threads = threads_per_process(jobs)
         worker_cfg = cfg if cfg.num_threads is not None else _with_threads(cfg, threads)
-        with ProcessPoolExecutor(max_workers=min(jobs, len(splits)), mp_context=get_context("spawn"),
-                                 initializer=_init_worker, initargs=(threads,)) as pool:
-            futures = [pool.submit(_run_one, s, *common, worker_cfg, cache, 1) for s in splits]
-            for i, fut in enumerate(futures):
-                results[i] = fut.result()
-                bar.update()
+        calls = [(s, *common, worker_cfg, cache, 1) for s in splits]
+        for i, res in enumerate(in_processes(_run_one, calls, processes=jobs, threads=threads)):
+            results[i] = res
+            bar.update()
     else:
         for i, s in enumerate(splits):
             results[i] = _run_one(s, *common, cfg, cache, jobs)
@@ -405,12 +380,4 @@ def run_splits(
 
 
 def _with_threads(cfg: TrainConfig, threads: int) -> TrainConfig:
-    from dataclasses import replace
-
     return replace(cfg, num_threads=threads)
-
-
-def _plain(obj: Any) -> Any:
-    from .leaderboard import _plain as plain
-
-    return plain(obj)

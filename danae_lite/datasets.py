@@ -1,7 +1,7 @@
 """Find the real datasets in the data directory, or let the simulator stand in.
 
-The data directory (``DANAE_DATA`` or an explicit argument, see
-:func:`danae_lite.config.data_dir`) holds the datasets in their original layout:
+The data directory (an argument; the entry points take it from ``--data-dir`` or ``DANAE_DATA``,
+see :mod:`danae_lite.config`) holds the datasets in their original layout:
 
 * ``oxiod/handheld/data1/syn/imuK.csv`` + ``viK.csv`` for K = 2, 3, 4, 7: train on imu3, imu4,
   imu7, test on imu2. (The paper used OxIOD's slow-walking set, which is not available here;
@@ -17,7 +17,7 @@ stands in (:func:`danae_lite.simulate.simulate`), with the same split shape: fou
 ``"underwater"`` recording split 80/20. A folder that exists but lacks the expected files raises DataError: whoever put it
 there meant real data.
 
-Fast mode (:func:`danae_lite.config.fast_mode`) keeps the first :data:`FAST_SAMPLES` samples of
+Fast mode (the ``fast`` argument) keeps the first :data:`FAST_SAMPLES` samples of
 each real OxIOD recording, keeps the real UCS recording whole (it is only ~20k samples at
 10 Hz), and simulates :data:`FAST_DURATION` seconds per recording instead of the scenario
 default (180 s handheld, 1950 s underwater), and keeps the first :data:`FAST_BROAD_SAMPLES`
@@ -30,7 +30,6 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from . import broad, oxiod, ucs
-from .config import DATA_ENV, data_dir as resolve_data_dir, fast_mode
 from .recording import DataError, Recording
 
 OXIOD_FOLDER = ("handheld", "data1")
@@ -87,29 +86,50 @@ class Experiment:
     aligned: bool = False
 
 
+def existing_dir(path: str | os.PathLike[str] | None) -> Path | None:
+    """``path`` resolved, or None for None. A path that is not a directory raises
+    ``FileNotFoundError`` naming it: whoever names a data directory means it."""
+    if path is None:
+        return None
+    p = Path(path).expanduser().resolve()
+    if not p.is_dir():
+        raise FileNotFoundError(f"data directory {p} is not a directory")
+    return p
+
+
+def fast_cut(recs: list[Recording], fast: bool, limit: int) -> list[Recording]:
+    """Fast mode: the first ``limit`` samples of each recording (names kept); else ``recs``."""
+    return [r.slice(0, limit, name=r.name) if fast and len(r) > limit else r for r in recs]
+
+
+def fast_note(fast: bool, limit: int) -> str:
+    """The phrase a note adds in fast mode, e.g. `` (fast mode: first 6000 samples each)``."""
+    return f" (fast mode: first {limit} samples each)" if fast else ""
+
+
 def oxiod_root(data_dir: str | os.PathLike[str] | None = None) -> Path | None:
     """Return ``<data dir>/oxiod`` if that folder exists, else None."""
-    base = resolve_data_dir(data_dir)
+    base = existing_dir(data_dir)
     root = base / "oxiod" if base is not None else None
     return root if root is not None and root.is_dir() else None
 
 
 def ucs_file(data_dir: str | os.PathLike[str] | None = None) -> Path | None:
     """Return ``<data dir>/ucs/full_dataset/imu_adis.txt`` if it exists, else None."""
-    base = resolve_data_dir(data_dir)
+    base = existing_dir(data_dir)
     path = base / "ucs" / UCS_RELPATH if base is not None else None
     return path if path is not None and path.is_file() else None
 
 
 def broad_root(data_dir: str | os.PathLike[str] | None = None) -> Path | None:
     """Return ``<data dir>/broad`` if that folder exists, else None."""
-    base = resolve_data_dir(data_dir)
+    base = existing_dir(data_dir)
     root = base / "broad" if base is not None else None
     return root if root is not None and root.is_dir() else None
 
 
 def _where(base: Path | None) -> str:
-    return f"({DATA_ENV} unset)" if base is None else f"under {base}"
+    return "(no data directory given)" if base is None else f"under {base}"
 
 
 def _real_oxiod(root: Path, fast: bool) -> Experiment:
@@ -120,12 +140,8 @@ def _real_oxiod(root: Path, fast: bool) -> Experiment:
         raise DataError(f"{root} exists but lacks {', '.join(missing)}; expected the original OxIOD layout "
                         "<oxiod>/handheld/data1/syn/imuK.csv + viK.csv")
 
-    def load(k: int) -> Recording:
-        rec = oxiod.load_recording(syn / f"imu{k}.csv")
-        return rec.slice(0, FAST_SAMPLES, name=rec.name) if fast and len(rec) > FAST_SAMPLES else rec
-
-    train, test = [load(k) for k in OXIOD_TRAIN], [load(k) for k in OXIOD_TEST]
-    cut = f" (fast mode: first {FAST_SAMPLES} samples each)" if fast else ""
+    train, test = (load_oxiod_files([syn / f"imu{k}.csv" for k in ks], fast) for ks in (OXIOD_TRAIN, OXIOD_TEST))
+    cut = fast_note(fast, FAST_SAMPLES)
     note = (f"Real OxIOD from {root}: train {', '.join(f'imu{k}' for k in OXIOD_TRAIN)}; test "
             f"{', '.join(f'imu{k}' for k in OXIOD_TEST)} of {'/'.join(OXIOD_FOLDER)}{cut}; the paper's "
             "slow-walking set is not available, so handheld/data1 stands in for it.")
@@ -141,36 +157,43 @@ def _real_ucs(path: Path) -> Experiment:
 
 
 def _real_broad(root: Path, fast: bool) -> Experiment:
-    recs = broad.load_trials(root)  # DataError when the folder holds no trials
-    if fast:
-        recs = [r.slice(0, FAST_BROAD_SAMPLES, name=r.name) if len(r) > FAST_BROAD_SAMPLES else r for r in recs]
+    recs = fast_cut(broad.load_trials(root), fast, FAST_BROAD_SAMPLES)  # DataError when the folder holds no trials
     train = [r for r in recs if BROAD_TRAIN_GROUP in r.meta["groups"]]
     test = [r for r in recs if BROAD_TEST_GROUP in r.meta["groups"]]
     if not train or not test:
         raise DataError(f"{root}: found {len(train)} trial(s) of the group {BROAD_TRAIN_GROUP!r} and {len(test)} of "
                         f"{BROAD_TEST_GROUP!r} (from trials.json); both are needed for the default split")
-    cut = f" (fast mode: first {FAST_BROAD_SAMPLES} samples each)" if fast else ""
+    cut = fast_note(fast, FAST_BROAD_SAMPLES)
     note = (f"Real BROAD from {root}: train the {len(train)} {BROAD_TRAIN_GROUP} trials, test the {len(test)} "
             f"{BROAD_TEST_GROUP} trials{cut}. BROAD: Laidig, Caruso, Cereatti, Seel, Data 6(7), 2021 (CC BY 4.0).")
     return Experiment("broad", "real", train, test, note, aligned=True)
 
 
+def load_oxiod_files(paths: list[Path], fast: bool) -> list[Recording]:
+    """OxIOD recordings ``imuK.csv`` (with ``viK.csv`` beside each), cut in fast mode."""
+    return fast_cut([oxiod.load_recording(p) for p in paths], fast, FAST_SAMPLES)
+
+
+def load_broad_files(paths: list[Path], fast: bool) -> list[Recording]:
+    """BROAD trials ``NN_<name>.mat``, cut in fast mode."""
+    return fast_cut([broad.load_trial(p) for p in paths], fast, FAST_BROAD_SAMPLES)
+
+
 def load_experiment(name: str = "oxiod", data_dir: str | os.PathLike[str] | None = None, *,
-                    fast: bool | None = None, seed: int = 0, verbose: bool = True) -> Experiment:
+                    fast: bool = False, seed: int = 0, verbose: bool = True) -> Experiment:
     """Load the train/test recordings of ``"oxiod"``, ``"ucs"`` or ``"broad"``, real if found, else simulated.
 
     Parameters
     ----------
     name : ``"oxiod"``, ``"ucs"`` or ``"broad"``.
-    data_dir : data directory; default ``DANAE_DATA`` (see :func:`danae_lite.config.data_dir`).
-    fast : fast mode; default from ``DANAE_FAST`` (see the module docstring).
+    data_dir : data directory holding ``oxiod/``, ``ucs/`` and/or ``broad/``; None: the simulator stands in.
+    fast : fast mode (see the module docstring).
     seed : base seed of the simulated stand-in.
     verbose : print the experiment's note.
     """
     if name not in NAMES:
         raise ValueError(f"unknown experiment {name!r}; valid: {', '.join(NAMES)}")
-    fast = fast_mode(fast)
-    base = resolve_data_dir(data_dir)
+    base = existing_dir(data_dir)
     if name == "oxiod":
         root = oxiod_root(base) if base is not None else None
         exp = _real_oxiod(root, fast) if root is not None else _simulated_oxiod(base, fast, seed)
@@ -189,18 +212,17 @@ def load_experiment(name: str = "oxiod", data_dir: str | os.PathLike[str] | None
     return exp
 
 
-def simulated_experiment(name: str = "oxiod", *, fast: bool | None = None, seed: int = 0,
+def simulated_experiment(name: str = "oxiod", *, fast: bool = False, seed: int = 0,
                          verbose: bool = True) -> Experiment:
     """The simulator's stand-in for ``"oxiod"`` or ``"broad"`` (handheld scenario) or ``"ucs"``
     (underwater), whatever data directory is set: the same recordings :func:`load_experiment`
     falls back to."""
     if name not in NAMES:
         raise ValueError(f"unknown experiment {name!r}; valid: {', '.join(NAMES)}")
-    fast = fast_mode(fast)
     make = {"oxiod": _simulated_oxiod, "broad": _simulated_broad, "ucs": _simulated_ucs}[name]
     exp = make(None, fast, seed)
     for label in ("OxIOD", "BROAD", "UCS"):
-        exp.note = exp.note.replace(f"No real {label} data found (DANAE_DATA unset): ", "Simulated: ")
+        exp.note = exp.note.replace(f"No real {label} data found {_where(None)}: ", "Simulated: ")
     if verbose:
         print(exp.note)
     return exp
@@ -244,7 +266,7 @@ class Motions:
     note: str
 
 
-def load_motions(data_dir: str | os.PathLike[str] | None = None, *, fast: bool | None = None, seed: int = 0,
+def load_motions(data_dir: str | os.PathLike[str] | None = None, *, fast: bool = False, seed: int = 0,
                  verbose: bool = True) -> Motions:
     """The OxIOD motions of :data:`OXIOD_MOTIONS` found under ``<data dir>/oxiod`` (fast mode: the
     first :data:`FAST_SAMPLES` samples of each), or simulated stand-ins when there is no
@@ -254,8 +276,7 @@ def load_motions(data_dir: str | os.PathLike[str] | None = None, *, fast: bool |
     A motion folder that exists but lacks one of its files raises
     :class:`~danae_lite.recording.DataError` naming the file.
     """
-    fast = fast_mode(fast)
-    base = resolve_data_dir(data_dir)
+    base = existing_dir(data_dir)
     root = oxiod_root(base) if base is not None else None
     out: dict[str, list[Recording]] = {}
     if root is None:
@@ -280,10 +301,8 @@ def load_motions(data_dir: str | os.PathLike[str] | None = None, *, fast: bool |
             if missing:
                 raise DataError(f"{root / setting} exists but lacks {', '.join(missing)}; expected the original "
                                 f"OxIOD layout <oxiod>/{setting}/{folder}/syn/imuK.csv + viK.csv")
-            recs = [oxiod.load_recording(syn / f"imu{k}.csv") for k in ks]
-            out[motion] = [r.slice(0, FAST_SAMPLES, name=r.name) if fast and len(r) > FAST_SAMPLES else r
-                           for r in recs]
-        cut = f" (fast mode: first {FAST_SAMPLES} samples each)" if fast else ""
+            out[motion] = load_oxiod_files([syn / f"imu{k}.csv" for k in ks], fast)
+        cut = fast_note(fast, FAST_SAMPLES)
         note = ("Real OxIOD from " + str(root) + ": " + "; ".join(f"{m} {len(v)} recordings" for m, v in out.items())
                 + cut + ".")
         result = Motions("real", out, note)

@@ -19,11 +19,12 @@ networks or the training loop (:func:`danae_lite.networks.train_networks`):
   filter's roll and the accelerometer's roll, and so on; headings are rotated as sin/cos
   pairs). Inside a window it is nearly constant, so the network cannot read the correction
   off the absolute angle. The target (an error) does not change.
-* **Inputs.** ``inputs="multi"``: the 11 channels of :data:`danae_lite.variants.MULTI_CHANNELS`
+* **Inputs.** ``inputs="multi"``: the 11 channels of :data:`danae_lite.features.MULTI_CHANNELS`
   (filter angles, accelerometer tilt, magnetic heading, Euler rates); ``"angles"``: the
   filter's angles only.
-* **Architecture.** ``arch="causal"`` (default, :class:`~danae_lite.model.DanaeCausal`, 64
-  channels, 64-sample windows, loss on positions 30-63): on a causal filter it runs on-line
+* **Architecture.** ``arch="causal"`` (default, :data:`danae_lite.features.CAUSAL_SETTINGS`:
+  :class:`~danae_lite.model.DanaeCausal`, 64 channels, 64-sample windows, loss on positions
+  30-63): on a causal filter it runs on-line
   (:class:`DenoiserStream`). ``arch="paper"`` looks ahead.
 * **Gate chosen across recordings** (``gate=True``): per angle, the gain ``g`` in
   :data:`GATE_GAINS` with the lowest RMSE on training recordings the scoring network has not
@@ -51,10 +52,13 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .angles import wrap
-from .baselines import Context, Method, make_method
+from .baselines import make_method
+from .features import ANGLE_CHANNELS, CAUSAL_SETTINGS, MULTI_CHANNELS, multi_input, run_network, to_circle
+from .methods import Context, Method
+from .networks import train_networks
 from .recording import Recording
-from .train import TrainConfig, TrainResult, predict
-from .variants import ANGLE_CHANNELS, MULTI_CHANNELS, multi_input, to_circle, validation_block
+from .streaming import StreamingDanae
+from .train import TrainConfig, TrainResult, validation_tail
 
 Array = NDArray[np.float64]
 
@@ -62,8 +66,6 @@ GATE_GAINS: tuple[float, ...] = (0.0, 0.25, 0.5, 0.75, 1.0)
 """Gains the validation gate chooses from, per angle (0: the filter, 1: the full correction)."""
 OFFSET_PERIODS_S: tuple[float, float] = (20.0, 60.0)
 """Range of the periods [s] of the level-augmentation sinusoids."""
-DEFAULT_SETTINGS: dict[str, Any] = {"arch": "causal", "hidden": 64, "window": 64, "loss_start": 30}
-"""Network of the recommended denoiser (the causal variant of chapter 6)."""
 
 # channels of each input set that carry the level of one rotation axis: (roll, pitch) channels
 # are shifted, (sin, cos) pairs rotated by the yaw offset
@@ -76,7 +78,7 @@ _LEVEL_CHANNELS = {
 def _tail(n: int, config: TrainConfig) -> NDArray[np.bool_]:
     """True on the validation tail of an ``n``-sample training recording."""
     m = np.zeros(n, dtype=bool)
-    m[validation_block(n, config)] = True
+    m[n - validation_tail(n, config.window, config.val_fraction) :] = True
     return m
 
 
@@ -130,7 +132,7 @@ class DanaeRes(Method):
     gate_folds : inner folds of the training recordings for the gate (at most this many).
     name : leaderboard name; default ``"danae-res[<source>]"``.
     **train_overrides : :class:`~danae_lite.train.TrainConfig` fields replacing
-        :data:`DEFAULT_SETTINGS` and the context's settings (e.g. ``arch="paper", window=20``).
+        :data:`~danae_lite.features.CAUSAL_SETTINGS` and the context's settings (e.g. ``arch="paper", window=20``).
 
     Attributes (after ``fit``)
     --------------------------
@@ -157,7 +159,7 @@ class DanaeRes(Method):
         if int(gate_folds) != gate_folds or gate_folds < 2:
             raise ValueError(f"gate_folds must be an integer >= 2, got {gate_folds!r}")
         self.offset_rad, self.gate, self.gate_folds = float(offset_rad), bool(gate), int(gate_folds)
-        self.overrides = {**DEFAULT_SETTINGS, **train_overrides}
+        self.overrides = {**CAUSAL_SETTINGS, **train_overrides}
         self.name = name or f"danae-res[{source}]"
         self.causal = self.overrides["arch"] == "causal" and make_method(source).causal
         self.description = (f"DANAE-res: a learned correction of {source}'s output "
@@ -219,11 +221,8 @@ class DanaeRes(Method):
     def _prepare(self, recs: list[Recording], x: dict[str, Array], y: dict[str, Array], cfg: TrainConfig,
                  rng: np.random.Generator) -> tuple[list[Array], list[Array], list[Array], dict[str, Array]]:
         """Standardised (and level-augmented) inputs, scaled targets, masks and the scaling of ``recs``."""
-        rows = []
-        for r in recs:
-            keep = self.ctx.clean[r.name].copy()
-            keep[validation_block(len(r), cfg)] = False  # statistics: clean samples outside the validation tails
-            rows.append(keep)
+        # statistics: clean samples outside the validation tails
+        rows = [self.ctx.clean[r.name] & ~_tail(len(r), cfg) for r in recs]
         xa = np.concatenate([x[r.name][k] for r, k in zip(recs, rows)])
         ya = np.concatenate([y[r.name][k] for r, k in zip(recs, rows)])
         in_mean, in_std = xa.mean(0), np.where(xa.std(0) > 1e-12, xa.std(0), 1.0)
@@ -243,24 +242,44 @@ class DanaeRes(Method):
             ys.append((y[r.name] - scaling["out_mean"]) / scaling["out_std"])
         return xs, ys, [self.ctx.clean[r.name] for r in recs], scaling
 
-    def fit(self, ctx: Context) -> "DanaeRes":
-        from .networks import train_networks
-
+    def fit(self, ctx: Context) -> DanaeRes:
+        """Train the prediction network and the gate's networks on ``ctx.train`` (one per seed
+        each) and choose the gains; see the class docstring for the attributes set."""
         self.ctx = ctx
         self.base = ctx.method(self.source)
         cfg = self.config(ctx.seeds[0])
-        by_name = {r.name: r for r in ctx.train}
         est = {r.name: self.base.predict(r)[0] for r in ctx.train}
         self.missing = self._missing_angles(est)
         x = {r.name: self.features(r, est[r.name]) for r in ctx.train}
         y = {r.name: self._target(r, est[r.name]) for r in ctx.train}
-        # the network for prediction ("joint"), and one per inner fold for the gate ("without-k")
-        folds = self._gate_folds(list(by_name))
+        folds = self._gate_folds([r.name for r in ctx.train])
+        nets = self._train(folds, x, y, cfg)
+        self.results: dict[int, TrainResult] = {seed: nets[("joint", seed)] for seed in map(int, ctx.seeds)}
+        self.gate_results: dict[tuple[int, int], TrainResult] = {
+            (k, int(seed)): nets[(f"without-{k}", int(seed))] for k in range(len(folds)) for seed in ctx.seeds}
+        self.gate_data = "held-out training recordings" if folds else "validation tails"
+        scores = self._choose_gains(nets, folds, x, est, cfg)
+        self.params = {"source": self.source, "inputs": list(self.channels()), "residual": self.residual,
+                       "offset_rad": self.offset_rad, "gate": self.gate, "gate_data": self.gate_data,
+                       "gate_folds": [list(f) for f in folds], "arch": cfg.arch, "window": cfg.window,
+                       "seeds": list(ctx.seeds), "gate_gains": list(GATE_GAINS),
+                       "gains": {s: g.tolist() for s, g in self.gains.items()},
+                       "missing": [a for a, m in zip(("roll", "pitch", "yaw"), self.missing) if m],
+                       "gate_rmse_rad": scores, "source_params": self.base.params}
+        return self
+
+    def _train(self, folds: list[list[str]], x: dict[str, Array], y: dict[str, Array],
+               cfg: TrainConfig) -> dict[tuple[str, int], TrainResult]:
+        """The networks per head and seed: ``"joint"`` (every training recording, for
+        prediction) and ``"without-k"`` (all but inner fold ``k``, for the gate), each with its
+        standardisation in its buffers; sets :attr:`scaling` (the joint network's)."""
+        ctx = self.ctx
         sets = {"joint": list(ctx.train)}
         for k, held in enumerate(folds):
             sets[f"without-{k}"] = [r for r in ctx.train if r.name not in held]
-        prepared = {head: self._prepare(recs, x, y, cfg, np.random.default_rng([int(ctx.seeds[0]), i]) if i else
-                                        np.random.default_rng(int(ctx.seeds[0])))
+        seed = int(ctx.seeds[0])
+        prepared = {head: self._prepare(recs, x, y, cfg, np.random.default_rng([seed, i]) if i else
+                                        np.random.default_rng(seed))
                     for i, (head, recs) in enumerate(sets.items())}
         nets = train_networks({h: p[0] for h, p in prepared.items()}, {h: p[1] for h, p in prepared.items()}, cfg,
                               ctx.seeds, masks={h: p[2] for h, p in prepared.items()}, tag="denoiser",
@@ -271,58 +290,50 @@ class DanaeRes(Method):
             sc = prepared[head][3]
             res.model.set_normalization(sc["in_mean"], sc["in_std"], sc["out_mean"], sc["out_std"])
         self.scaling = prepared["joint"][3]
-        self.results: dict[int, TrainResult] = {seed: nets[("joint", seed)] for seed in map(int, ctx.seeds)}
-        self.gate_results: dict[tuple[int, int], TrainResult] = {
-            (k, int(seed)): nets[(f"without-{k}", int(seed))] for k in range(len(folds)) for seed in ctx.seeds}
+        return nets
 
-        # the gate: per seed and angle, the gain with the lowest RMSE on clean samples no network
-        # it scores has trained on: each inner fold's recordings for that fold's network, or
-        # (one training recording) the validation tails of the prediction network
-        self.gate_data = "held-out training recordings" if folds else "validation tails"
+    def _choose_gains(self, nets: dict[tuple[str, int], TrainResult], folds: list[list[str]], x: dict[str, Array],
+                      est: dict[str, Array], cfg: TrainConfig) -> dict[int, dict[str, list[float]]]:
+        """The gate: per seed and angle, the gain of :data:`GATE_GAINS` with the lowest RMSE on
+        clean samples no network it scores has trained on: each inner fold's recordings for that
+        fold's network or (one training recording) the validation tails of the prediction
+        network. Sets :attr:`gains`; returns the RMSE [rad] per seed, angle and gain."""
+        by_name = {r.name: r for r in self.ctx.train}
         self.gains: dict[int, Array] = {}
         scores: dict[int, dict[str, list[float]]] = {}
-        for seed in map(int, ctx.seeds):
-            sq, count = np.zeros((len(GATE_GAINS), 3)), 0
+        for seed in map(int, self.ctx.seeds):
             pairs = ([(nets[(f"without-{k}", seed)], by_name[n], np.ones(len(by_name[n]), bool))
                       for k, held in enumerate(folds) for n in held] if folds else
-                     [(nets[("joint", seed)], r, _tail(len(r), cfg)) for r in ctx.train])
-            for res, r, where in pairs:
-                ok = where & ctx.clean[r.name]
-                if not ok.any():
-                    continue
-                corr = self._run_network(res, x[r.name])
-                for i, g in enumerate(GATE_GAINS):
-                    d = filter_error(self._output(est[r.name], corr, np.full(3, g))[ok], r.euler[ok])
-                    sq[i] += np.sum(d * d, axis=0)
-                count += int(ok.sum())
-            if count == 0:
-                raise ValueError(f"{self.name}: no clean sample to choose the gate on "
-                                 "(set val_fraction > 0, give more training recordings, or gate=False)")
-            val_rmse = np.sqrt(sq / count)  # NaN for an angle the filter does not estimate
+                     [(nets[("joint", seed)], r, _tail(len(r), cfg)) for r in self.ctx.train])
+            val_rmse = self._gate_rmse(pairs, x, est)  # NaN for an angle the filter does not estimate
             gains = (np.array([GATE_GAINS[i] for i in np.nan_to_num(val_rmse, nan=0.0).argmin(0)])
                      if self.gate else np.ones(3))
             self.gains[seed] = np.where(self.missing, 0.0, gains)
             scores[seed] = {a: val_rmse[:, k].tolist() for k, a in enumerate(("roll", "pitch", "yaw"))}
-        self.params = {"source": self.source, "inputs": list(self.channels()), "residual": self.residual,
-                       "offset_rad": self.offset_rad, "gate": self.gate, "gate_data": self.gate_data,
-                       "gate_folds": [list(f) for f in folds], "arch": cfg.arch, "window": cfg.window,
-                       "seeds": list(ctx.seeds), "gate_gains": list(GATE_GAINS),
-                       "gains": {s: g.tolist() for s, g in self.gains.items()},
-                       "missing": [a for a, m in zip(("roll", "pitch", "yaw"), self.missing) if m],
-                       "gate_rmse_rad": scores, "source_params": self.base.params}
-        return self
+        return scores
 
-    @staticmethod
-    def _run_network(res: TrainResult, x: Array) -> Array:
-        if res.config.arch == "causal":
-            from .streaming import predict_causal
-
-            return predict_causal(res, x)
-        return predict(res, x)
+    def _gate_rmse(self, pairs: list[tuple[TrainResult, Recording, NDArray[np.bool_]]], x: dict[str, Array],
+                   est: dict[str, Array]) -> Array:
+        """RMSE [rad] per gain of :data:`GATE_GAINS` (rows) and angle of the output on the clean
+        samples of ``pairs`` (network, recording, samples it may be scored on) taken together."""
+        sq, count = np.zeros((len(GATE_GAINS), 3)), 0
+        for res, r, where in pairs:
+            ok = where & self.ctx.clean[r.name]
+            if not ok.any():
+                continue
+            corr = run_network(res, x[r.name])
+            for i, g in enumerate(GATE_GAINS):
+                d = filter_error(self._output(est[r.name], corr, np.full(3, g))[ok], r.euler[ok])
+                sq[i] += np.sum(d * d, axis=0)
+            count += int(ok.sum())
+        if count == 0:
+            raise ValueError(f"{self.name}: no clean sample to choose the gate on "
+                             "(set val_fraction > 0, give more training recordings, or gate=False)")
+        return np.sqrt(sq / count)
 
     def _network_output(self, seed: int, x: Array) -> Array:
         """The prediction network's correction (N, 3) [rad] (residual) for features ``x``."""
-        return self._run_network(self.results[seed], x)
+        return run_network(self.results[seed], x)
 
     def fallback_share(self) -> float:
         """Fraction of (seed, angle) pairs whose gate fell back to the filter (gain 0)."""
@@ -344,8 +355,6 @@ class DenoiserStream:
     """
 
     def __init__(self, method: DanaeRes, seed: int | None = None, *, num_threads: int | None = 1) -> None:
-        from .streaming import StreamingDanae
-
         seed = int(method.ctx.seeds[0] if seed is None else seed)
         if method.results[seed].config.arch != "causal":
             raise ValueError(f"{method.name}: only the causal network streams (arch={method.results[seed].config.arch!r})")

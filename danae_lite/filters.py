@@ -44,12 +44,10 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
-from .angles import quat_to_euler
+from .angles import G, quat_to_euler
 
 Array = NDArray[np.float64]
 
-G = 9.80665
-"""Standard gravity [m/s²] (the libraries that want m/s² get ``acc * G``)."""
 _ENU_TO_NWU = Rotation.from_euler("z", -np.pi / 2)
 
 

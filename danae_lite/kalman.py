@@ -781,7 +781,12 @@ def _general_loop(
     dt: float,
     wrap_yaw: bool = False,
 ) -> tuple[array, ...]:
-    """As :func:`_block_loop` with a full 6x3 gain per step (row-major, 18 numbers)."""
+    """As :func:`_block_loop` with a full 6x3 gain per step (row-major, 18 numbers).
+
+    Its first lines (inputs and heading at the previous estimates) repeat :func:`_block_loop`'s
+    on purpose: both are hot loops of plain scalars, where a helper call per sample would cost
+    a third of the loop's time.
+    """
     sin, cos, atan2 = math.sin, math.cos, math.atan2
     x0, x1, x2, x3, x4, x5, pf, ph = st
     out = tuple(array("d") for _ in range(10))
@@ -828,6 +833,49 @@ def _general_loop(
     return out
 
 
+def _step(dt: float | None, cfg: KFConfig) -> float:
+    """The step [s]: ``dt``, else ``cfg.dt``; ValueError when neither is given or they disagree."""
+    if dt is None:
+        if cfg.dt is None:
+            raise ValueError("dt is not given and config.dt is None: pass the step in seconds")
+        dt = cfg.dt
+    _check_dt(dt)
+    dt = float(dt)
+    if cfg.dt is not None and cfg.dt != dt:
+        raise ValueError(f"dt={dt} disagrees with config.dt={cfg.dt}")
+    return dt
+
+
+def _sensor_arrays(**named: ArrayLike) -> dict[str, NDArray[np.float64]]:
+    """The sensor arrays as finite (N, 3) floats with one N (> 0); ValueError naming the array,
+    and the first bad row, otherwise."""
+    arrays = {}
+    n = None
+    for name, value in named.items():
+        a = np.asarray(value, dtype=float)
+        if a.ndim != 2 or a.shape[1] != 3:
+            raise ValueError(f"{name} must have shape (N, 3), got {a.shape}")
+        if not np.isfinite(a).all():
+            raise ValueError(f"{name} contains non-finite values (first at row {int(np.argmax(~np.isfinite(a).all(1)))})")
+        n = a.shape[0] if n is None else n
+        if a.shape[0] != n:
+            raise ValueError(f"{name} has {a.shape[0]} rows, gyro has {n}")
+        arrays[name] = a
+    if not n:
+        raise ValueError("no samples")
+    return arrays
+
+
+def _initial_tilt(init_euler: ArrayLike | None, cfg: KFConfig) -> tuple[float, float]:
+    """Roll and pitch [rad] of the step-0 formulas: ``init_euler``'s, else ``cfg.x0``'s."""
+    if init_euler is None:
+        return float(cfg.x0[0]), float(cfg.x0[2])
+    ie = np.asarray(init_euler, dtype=float).ravel()
+    if ie.size not in (2, 3) or not np.isfinite(ie).all():
+        raise ValueError(f"init_euler must be (roll, pitch[, yaw]) in rad, got {init_euler!r}")
+    return float(ie[0]), float(ie[1])
+
+
 def kalman_filter(
     gyro: ArrayLike,
     acc: ArrayLike,
@@ -868,36 +916,10 @@ def kalman_filter(
     KFResult
     """
     cfg = config or KFConfig()
-    if dt is None:
-        if cfg.dt is None:
-            raise ValueError("dt is not given and config.dt is None: pass the step in seconds")
-        dt = cfg.dt
-    _check_dt(dt)
-    dt = float(dt)
-    if cfg.dt is not None and cfg.dt != dt:
-        raise ValueError(f"dt={dt} disagrees with config.dt={cfg.dt}")
-    arrays = {}
-    n = None
-    for name, value in (("gyro", gyro), ("acc", acc), ("mag", mag)):
-        a = np.asarray(value, dtype=float)
-        if a.ndim != 2 or a.shape[1] != 3:
-            raise ValueError(f"{name} must have shape (N, 3), got {a.shape}")
-        if not np.isfinite(a).all():
-            raise ValueError(f"{name} contains non-finite values (first at row {int(np.argmax(~np.isfinite(a).all(1)))})")
-        n = a.shape[0] if n is None else n
-        if a.shape[0] != n:
-            raise ValueError(f"{name} has {a.shape[0]} rows, gyro has {n}")
-        arrays[name] = a
-    assert n is not None
-    if n == 0:
-        raise ValueError("no samples")
-    if init_euler is None:
-        pf0, ph0 = float(cfg.x0[0]), float(cfg.x0[2])
-    else:
-        ie = np.asarray(init_euler, dtype=float).ravel()
-        if ie.size not in (2, 3) or not np.isfinite(ie).all():
-            raise ValueError(f"init_euler must be (roll, pitch[, yaw]) in rad, got {init_euler!r}")
-        pf0, ph0 = float(ie[0]), float(ie[1])
+    dt = _step(dt, cfg)
+    arrays = _sensor_arrays(gyro=gyro, acc=acc, mag=mag)
+    n = len(arrays["gyro"])
+    pf0, ph0 = _initial_tilt(init_euler, cfg)
 
     block = _resolve_method(cfg, method)
     seq = gain_sequence(dt, cfg, n_max=n, method="block" if block else "general")

@@ -7,8 +7,9 @@
    recordings only (:func:`danae_lite.alignment.estimate_alignment`) and rotate every
    recording's sensors into the body frame (none for an experiment whose frames are already
    aligned, ``exp.aligned``: BROAD);
-3. fit every method of :mod:`danae_lite.baselines` on the training recordings (its grid search
-   included) and predict the test recordings;
+3. fit every method (:mod:`danae_lite.registry`: the baselines of :mod:`danae_lite.baselines`
+   and DANAE-res by name, any :class:`~danae_lite.methods.Method` as an object) on the training
+   recordings (its grid search included) and predict the test recordings;
 4. compute the paper's metrics (mean dev, max dev, RMSE [rad], errors wrapped to [-π, π), yaw
    included) on all test samples taken together, once on every sample and once on the clean
    samples only. Methods with several seeds (DANAE) report the mean over seeds and the
@@ -18,7 +19,7 @@
 On the BROAD benchmark (``experiment.name == "broad"``) it also writes ``broad_trials.csv``:
 :meth:`Leaderboard.trial_metrics`, one row per method and test trial with the benchmark's own
 figures (total, heading and inclination RMSE [deg] over the movement phases,
-:func:`danae_lite.broad.benchmark_rmse`).
+:func:`danae_lite.broad_benchmark.benchmark_rmse`).
 """
 from __future__ import annotations
 
@@ -34,12 +35,15 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from . import broad, metrics
+from . import broad_benchmark, metrics
 from .alignment import FrameAlignment, estimate_alignment
 from .angles import ANGLES, euler_to_quat
-from .baselines import METHODS, Context, Method, is_method_name
 from .datasets import Experiment
 from .groundtruth import clean_mask, glitch_table
+from .methods import Context, Method
+from .recording import Recording
+from .registry import METHODS, is_method_name, make_method
+from .scoring import SUBSETS, plain, score_rows
 from .train import TrainConfig
 
 if TYPE_CHECKING:
@@ -47,11 +51,10 @@ if TYPE_CHECKING:
 
 CSV_COLUMNS: tuple[str, ...] = ("method", "causal", "samples", "angle", "mean_dev", "max_dev", "rmse", "rmse_std", "n")
 """Columns of ``leaderboard.csv``; ``causal`` whether the method uses only past samples
-(:attr:`danae_lite.baselines.Method.causal`), ``samples`` "all" or "clean", metrics in rad, ``n``
+(:attr:`danae_lite.methods.Method.causal`), ``samples`` "all" or "clean", metrics in rad, ``n``
 the sample count."""
-SUBSETS: tuple[str, str] = ("all", "clean")
-TRIAL_COLUMNS: tuple[str, ...] = ("method", "causal", "test", *broad.METRICS,
-                                  *(f"{m}_std" for m in broad.METRICS), "n_samples", "seeds")
+TRIAL_COLUMNS: tuple[str, ...] = ("method", "causal", "test", *broad_benchmark.METRICS,
+                                  *(f"{m}_std" for m in broad_benchmark.METRICS), "n_samples", "seeds")
 """Columns of :meth:`Leaderboard.trial_metrics` (``broad_trials.csv``); figures in degrees."""
 
 
@@ -91,41 +94,19 @@ class Leaderboard:
         return str(w[angle].astype(float).idxmin())
 
     def trial_metrics(self) -> pd.DataFrame:
-        """The BROAD benchmark's figures per method and test recording (:data:`TRIAL_COLUMNS`).
-
-        Each prediction (roll, pitch, yaw [rad], ground-truth frame) becomes a quaternion
-        (:func:`danae_lite.angles.euler_to_quat`) and is scored by
-        :func:`danae_lite.broad.benchmark_rmse` against the recording's ground truth on the
-        samples where ``meta["movement"]`` and ``meta["gt_valid"]`` hold (every sample when a
-        recording has neither, e.g. a simulated one). Total, heading and inclination RMSE [deg]
-        are the mean over seeds, ``*_std`` their sample standard deviation over seeds (NaN with
-        one seed), as in the main table. A method without a heading (RIANN) gets the true yaw in
-        place of its missing one, so only its inclination is reported; total and heading are NaN.
-        """
+        """The BROAD benchmark's figures per method and test recording (:data:`TRIAL_COLUMNS`):
+        total, heading and inclination RMSE [deg] over the movement phases by
+        :func:`trial_figures`, the mean over seeds and ``*_std`` their sample standard deviation
+        over seeds (NaN with one seed), as in the main table. A method without a heading (RIANN)
+        reports its inclination only; total and heading are NaN."""
         rows = []
         for name, per_test in self.predictions.items():
             for rec in self.experiment.test:
-                n = len(rec)
-                movement = np.asarray(rec.meta.get("movement", np.ones(n, dtype=bool)), dtype=bool)
-                valid = np.asarray(rec.meta.get("gt_valid", np.ones(n, dtype=bool)), dtype=bool)
-                q_true = np.where(valid[:, None], rec.quat, np.nan)
-                per_seed = []
-                for est in per_test[rec.name]:
-                    e = np.array(est, dtype=float)
-                    no_heading = bool(np.isnan(e[:, 2]).all())
-                    if no_heading:
-                        e[:, 2] = rec.euler[:, 2]
-                    r = broad.benchmark_rmse(euler_to_quat(e), q_true, movement)
-                    figures = r.as_dict()
-                    if no_heading:
-                        figures["total_rmse_deg"] = figures["heading_rmse_deg"] = np.nan
-                    per_seed.append(figures)
-                agg = {m: (metrics.spread([f[m] for f in per_seed]) if np.isfinite(per_seed[0][m])
-                           else (np.nan, np.nan)) for m in broad.METRICS}
+                agg, n_samples = trial_figures(rec, per_test[rec.name])
                 rows.append({"method": name, "causal": bool(getattr(self.methods[name], "causal", False)),
-                             "test": rec.name, **{m: agg[m][0] for m in broad.METRICS},
-                             **{f"{m}_std": agg[m][1] for m in broad.METRICS},
-                             "n_samples": r.n_samples, "seeds": len(per_seed)})
+                             "test": rec.name, **{m: agg[m][0] for m in broad_benchmark.METRICS},
+                             **{f"{m}_std": agg[m][1] for m in broad_benchmark.METRICS},
+                             "n_samples": n_samples, "seeds": len(per_test[rec.name])})
         return pd.DataFrame(rows, columns=list(TRIAL_COLUMNS))
 
     def to_json(self) -> dict[str, Any]:
@@ -135,7 +116,7 @@ class Leaderboard:
         methods: dict[str, Any] = {}
         for name, m in self.methods.items():
             entry: dict[str, Any] = {"description": m.description, "causal": bool(m.causal),
-                                     "params": _plain(m.params)}
+                                     "params": plain(m.params)}
             for subset in SUBSETS:
                 rows = self.table[(self.table.method == name) & (self.table.samples == subset)]
                 entry[subset] = {r.angle: {k: (None if pd.isna(getattr(r, k)) else float(getattr(r, k)))
@@ -149,7 +130,7 @@ class Leaderboard:
             "test": [r.name for r in self.experiment.test],
             "seeds": list(self.seeds),
             "alignment": self.alignment.summary(),
-            "glitches": _plain(self.glitches.to_dict(orient="records")),
+            "glitches": plain(self.glitches.to_dict(orient="records")),
             "methods": methods,
             "seconds": {k: float(v) for k, v in self.seconds.items()},
         }
@@ -223,47 +204,48 @@ class Leaderboard:
         return paths
 
 
-def _plain(obj: Any) -> Any:
-    """JSON-able copy (numpy scalars/arrays to Python numbers/lists)."""
-    if isinstance(obj, dict):
-        return {str(k): _plain(v) for k, v in obj.items()}
-    if isinstance(obj, (list, tuple)):
-        return [_plain(v) for v in obj]
-    if isinstance(obj, np.ndarray):
-        return _plain(obj.tolist())
-    if isinstance(obj, (np.bool_, bool)):
-        return bool(obj)
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    if isinstance(obj, (np.floating, float)):
-        return None if not np.isfinite(obj) else float(obj)
-    return obj
+def trial_figures(rec: Recording, per_seed: Sequence[NDArray[np.float64]]
+                  ) -> tuple[dict[str, tuple[float, float]], int]:
+    """The BROAD benchmark's figures of one test recording: ``({metric: (mean, std)}, n)``.
+
+    Each seed's prediction (roll, pitch, yaw (N, 3) [rad], ground-truth frame) becomes a
+    quaternion and is scored by :func:`danae_lite.broad_benchmark.benchmark_rmse` (total,
+    heading, inclination RMSE [deg]) on the samples where ``rec.meta["movement"]`` and
+    ``rec.meta["gt_valid"]`` hold (every sample when the recording has neither, e.g. a
+    simulated one); ``n`` is their number. A prediction without a heading (NaN yaw: RIANN)
+    gets the true yaw, so that only its inclination counts: its total and heading are NaN.
+    Mean and sample std over seeds by :func:`danae_lite.metrics.spread` (std NaN with one
+    seed); (NaN, NaN) for a figure some seed lacks.
+    """
+    n = len(rec)
+    movement = np.asarray(rec.meta.get("movement", np.ones(n, dtype=bool)), dtype=bool)
+    valid = np.asarray(rec.meta.get("gt_valid", np.ones(n, dtype=bool)), dtype=bool)
+    q_true = np.where(valid[:, None], rec.quat, np.nan)
+    figures = []
+    for est in per_seed:
+        e = np.array(est, dtype=float)
+        no_heading = bool(np.isnan(e[:, 2]).all())
+        if no_heading:
+            e[:, 2] = rec.euler[:, 2]
+        r = broad_benchmark.benchmark_rmse(euler_to_quat(e), q_true, movement)
+        f = r.as_dict()
+        if no_heading:
+            f["total_rmse_deg"] = f["heading_rmse_deg"] = np.nan
+        figures.append(f)
+    agg = {m: (metrics.spread([f[m] for f in figures]) if all(np.isfinite(f[m]) for f in figures)
+               else (np.nan, np.nan)) for m in broad_benchmark.METRICS}
+    return agg, r.n_samples
 
 
 def _rows(name: str, causal: bool, preds: dict[str, list[NDArray[np.float64]]], exp: Experiment,
           clean: dict[str, NDArray[np.bool_]]) -> list[dict[str, Any]]:
-    """The paper's metrics per seed on all test samples taken together (all / clean), then
-    aggregated over seeds by :func:`danae_lite.metrics.spread`."""
+    """The paper's metrics on all test samples taken together (all / clean) per angle, mean
+    over seeds (:func:`danae_lite.scoring.score_rows`)."""
     truth = np.concatenate([r.euler for r in exp.test])
     ok = np.concatenate([clean[r.name] for r in exp.test])
     n_seeds = len(next(iter(preds.values())))
-    rows = []
-    for subset, sel in (("all", np.ones(len(truth), dtype=bool)), ("clean", ok)):
-        for k, a in enumerate(ANGLES):
-            row: dict[str, Any] = {"method": name, "causal": causal, "samples": subset, "angle": a,
-                                   "rmse_std": np.nan, "n": int(sel.sum())}
-            per_seed = []
-            for s in range(n_seeds):
-                est = np.concatenate([preds[r.name][s][:, k] for r in exp.test])
-                if np.isnan(est).all():  # an angle the method does not estimate (RIANN's yaw)
-                    break
-                per_seed.append(metrics.metric_table(est[sel], truth[sel, k], angles=(a,))[a])
-            for metric in metrics.METRICS:
-                row[metric] = metrics.spread([m[metric] for m in per_seed])[0] if per_seed else np.nan
-            if per_seed:
-                row["rmse_std"] = metrics.spread([m["rmse"] for m in per_seed])[1]
-            rows.append(row)
-    return rows
+    joined = [np.concatenate([preds[r.name][s] for r in exp.test]) for s in range(n_seeds)]
+    return [{"method": name, "causal": causal, **row} for row in score_rows(joined, truth, ok)]
 
 
 def run_leaderboard(
@@ -290,12 +272,12 @@ def run_leaderboard(
     cache : trained-network cache folder; None (default): no cache. Entry points pass the
         folder of their settings (:class:`danae_lite.config.RunSettings`).
     progress : show a progress bar over the methods (and DANAE's training bars).
-    extra : further unfitted :class:`~danae_lite.baselines.Method` objects (e.g. the variants
+    extra : further unfitted :class:`~danae_lite.methods.Method` objects (e.g. the variants
         of :mod:`danae_lite.variants`), fitted and evaluated after ``methods`` under their ``name``.
     align : None (default): estimate the frame alignment on the training recordings, or take
         the identity when ``exp.aligned``, and give every method the rotated specific force;
-        False: the recordings exactly as loaded, sensor signals and frames untouched (the
-        paper's experiment, :func:`danae_lite.pipeline.reproduce`).
+        False: the recordings exactly as loaded, sensor signals and frames untouched (as the
+        paper's experiment, :func:`danae_lite.pipeline.reproduce`, runs them).
     jobs : worker processes for the networks of each method (:mod:`danae_lite.networks`).
     """
     if progress:  # the notebook widget when available
@@ -303,35 +285,17 @@ def run_leaderboard(
     else:
         from tqdm import tqdm
 
-    unknown = [m for m in methods if not is_method_name(m)]
-    if unknown:
-        raise ValueError(f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(METHODS)} "
-                         "or danae-res[<filter>]")
     t_total = time.perf_counter()
-    recs = [*exp.train, *exp.test]
-    seen: set[str] = set()
-    dup = sorted({r.name for r in recs if r.name in seen or seen.add(r.name)})
-    if dup:
-        raise ValueError(f"recording names must be unique across training and test, repeated: {', '.join(dup)}")
-    clean = {r.name: clean_mask(r) for r in recs}
-    alignment = (FrameAlignment.identity() if exp.aligned or align is False
-                 else estimate_alignment(exp.train, [clean[r.name] for r in exp.train]))
-    if align is False:  # the recordings exactly as loaded (the paper's experiment)
-        aligned_train, aligned_test = list(exp.train), list(exp.test)
-    else:
-        aligned_train = [alignment.apply(r) for r in exp.train]
-        aligned_test = [alignment.apply(r) for r in exp.test]
+    todo = _check_names(exp, methods, extra)
+    clean = {r.name: clean_mask(r) for r in [*exp.train, *exp.test]}
+    alignment, aligned_train, aligned_test = _align(exp, clean, align)
     ctx = Context(train=aligned_train, clean={r.name: clean[r.name] for r in exp.train}, alignment=alignment,
                   seeds=tuple(int(s) for s in seeds), train_config=train_config or TrainConfig(), cache=cache,
-                  jobs=jobs, progress=progress)
+                  jobs=jobs, progress=progress, factory=make_method)
     fitted: dict[str, Method] = {}
     preds: dict[str, dict[str, list[NDArray[np.float64]]]] = {}
     seconds: dict[str, float] = {}
     rows: list[dict[str, Any]] = []
-    todo: list[Method | str] = [*methods, *extra]
-    names = [m if isinstance(m, str) else m.name for m in todo]
-    if len(set(names)) != len(names):
-        raise ValueError(f"method names must be unique, got {names}")
     for item in tqdm(todo, desc="leaderboard", unit="method", disable=not progress):
         t0 = time.perf_counter()
         m = ctx.method(item) if isinstance(item, str) else item.fit(ctx)
@@ -343,5 +307,35 @@ def run_leaderboard(
     seconds["total"] = time.perf_counter() - t_total
     table = pd.DataFrame(rows, columns=list(CSV_COLUMNS))
     return Leaderboard(experiment=exp, table=table, methods=fitted, predictions=preds, alignment=alignment,
-                       glitches=glitch_table(recs), clean=clean, seconds=seconds, seeds=ctx.seeds,
-                       train_config=ctx.train_config)
+                       glitches=glitch_table([*exp.train, *exp.test]), clean=clean, seconds=seconds,
+                       seeds=ctx.seeds, train_config=ctx.train_config)
+
+
+def _check_names(exp: Experiment, methods: Sequence[str], extra: Sequence[Method]) -> list[Method | str]:
+    """The methods to run (names, then objects); ValueError for an unknown method name, a
+    method name given twice or a recording name that is not unique."""
+    unknown = [m for m in methods if not is_method_name(m)]
+    if unknown:
+        raise ValueError(f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(METHODS)} "
+                         "or danae-res[<filter>]")
+    seen: set[str] = set()
+    dup = sorted({r.name for r in [*exp.train, *exp.test] if r.name in seen or seen.add(r.name)})
+    if dup:
+        raise ValueError(f"recording names must be unique across training and test, repeated: {', '.join(dup)}")
+    todo: list[Method | str] = [*methods, *extra]
+    names = [m if isinstance(m, str) else m.name for m in todo]
+    if len(set(names)) != len(names):
+        raise ValueError(f"method names must be unique, got {names}")
+    return todo
+
+
+def _align(exp: Experiment, clean: dict[str, NDArray[np.bool_]], align: bool | None
+           ) -> tuple[FrameAlignment, list[Recording], list[Recording]]:
+    """The frame alignment and the training and test recordings every method sees: rotated
+    by the alignment estimated on the clean training samples, by the identity for an aligned
+    experiment, or (``align=False``) exactly as loaded."""
+    alignment = (FrameAlignment.identity() if exp.aligned or align is False
+                 else estimate_alignment(exp.train, [clean[r.name] for r in exp.train]))
+    if align is False:  # the recordings exactly as loaded
+        return alignment, list(exp.train), list(exp.test)
+    return alignment, [alignment.apply(r) for r in exp.train], [alignment.apply(r) for r in exp.test]

@@ -320,6 +320,8 @@ class DanaePaper(DanaeBase):
         return f(self.out, c3).transpose(1, 2)
 
 
+# DanaeBig's constructor has DanaePaper's signature and builds its layers the same way, line by
+# line (deliberate: each architecture reads as its layer list, like the paper's figure).
 class DanaeBig(DanaeBase):
     """The authors' later, deeper variant (``GeneratorBIG``, July 2020 on, DANAE++).
 

@@ -11,28 +11,45 @@ DANAE; ``"joint"`` for a variant that predicts all angles at once), and returns 
   hashing everything that determines it (:func:`cache_key`); a network with the same key
   under another tag is the same network and is loaded.
 * **Parallel** (``jobs``): the trainings that the cache does not hold run in ``jobs`` worker
-  processes (:class:`concurrent.futures.ProcessPoolExecutor`, ``spawn`` start), each with
-  ``max(1, cores // jobs)`` torch threads unless the configuration fixes ``num_threads``.
+  processes (:func:`in_processes`, the package's one process pool, also used by
+  :mod:`danae_lite.crossval`), each with ``max(1, cores // jobs)`` torch threads
+  (:func:`threads_per_process`) unless the configuration fixes ``num_threads``.
   A network does not depend on the number of threads beyond float rounding
   (``tests/test_train.py``), so ``jobs`` changes the wall time, not the results.
 """
 from __future__ import annotations
 
 import hashlib
+import importlib
 import os
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
 from multiprocessing import get_context
 from pathlib import Path
-from typing import Any
+from typing import Any, TypeVar
 
 import numpy as np
 from numpy.typing import NDArray
 
-from .train import TrainConfig, TrainResult, load_result, save, train
+from .checkpoints import load_result, save
+from .train import TrainConfig, TrainResult, train
 
 Array = NDArray[np.float64]
+R = TypeVar("R")
+
+NETWORK_CODE: tuple[str, ...] = (
+    "danae_lite.model",  # the layers and their initialisation
+    "danae_lite.gemm_conv",  # the convolutions as matrix products
+    "danae_lite.train_types",  # TrainConfig: the network's constructor arguments
+    "danae_lite.train",  # the split, the windows' standardisation, the loop, Adam, model selection
+    "danae_lite.windows",  # how recordings are cut into windows
+    "danae_lite.seeding",  # how the random generators are seeded
+)
+"""The modules whose source decides a trained network, hashed into its :func:`cache_key`.
+Left out: the checkpoint files (:mod:`danae_lite.checkpoints`: writing and reading a network
+changes no network) and this module (caching and worker processes change no network either),
+so editing them keeps the cache."""
 
 
 @dataclass(frozen=True)
@@ -50,16 +67,17 @@ class NetworkJob:
     metadata: Mapping[str, Any]
 
 
-def cache_key(job: NetworkJob) -> str:
-    """16 hex digits of a SHA-256 over the data, the settings (not the device or thread count)
-    and the source of the code that builds, windows, seeds and trains the network."""
-    from . import gemm_conv, model as model_module, train as train_module, windows as windows_module
-    from .config import seeding_source
+def _module_source(name: str) -> bytes:
+    """The source file of module ``name``, as bytes."""
+    return Path(importlib.import_module(name).__file__ or "").read_bytes()
 
+
+def cache_key(job: NetworkJob) -> str:
+    """16 hex digits of a SHA-256 over the source of :data:`NETWORK_CODE`, the settings
+    (not the device or thread count, which change only float rounding) and the data."""
     h = hashlib.sha256()
-    for module in (gemm_conv, model_module, train_module, windows_module):
-        h.update(Path(module.__file__).read_bytes())
-    h.update(seeding_source().encode())
+    for name in NETWORK_CODE:
+        h.update(_module_source(name))
     settings = {k: v for k, v in job.config.to_dict().items() if k not in ("device", "num_threads")}
     h.update(repr(sorted(settings.items())).encode())
     for a in (*job.inputs, *(job.masks or ()), *job.targets):
@@ -87,10 +105,39 @@ def _run(job: NetworkJob, progress: bool) -> TrainResult:
                  target_masks=None if job.masks is None else list(job.masks))
 
 
-def _worker_init(threads: int) -> None:
+def _set_torch_threads(threads: int) -> None:
+    """Worker-process initialiser: ``threads`` torch CPU threads."""
     import torch
 
     torch.set_num_threads(threads)
+
+
+def threads_per_process(processes: int) -> int:
+    """Torch threads for each of ``processes`` concurrent workers: their share of the CPU cores
+    (at least 1), so that together they do not oversubscribe the machine."""
+    return max(1, (os.cpu_count() or 1) // processes)
+
+
+def in_processes(fn: Callable[..., R], calls: Sequence[tuple[Any, ...]], *, processes: int,
+                 threads: int) -> Iterator[R]:
+    """``fn(*args)`` for each ``args`` of ``calls``, run in worker processes; results in order.
+
+    Parameters
+    ----------
+    fn : a module-level function (it is pickled to the workers, as are its arguments).
+    calls : one tuple of positional arguments per call.
+    processes : worker processes (``spawn`` start; at most one per call).
+    threads : torch CPU threads in each worker (e.g. :func:`threads_per_process`).
+
+    Yields
+    ------
+    The result of each call, in the order of ``calls``, as soon as it and those before it are done.
+    """
+    with ProcessPoolExecutor(max_workers=min(processes, len(calls)), mp_context=get_context("spawn"),
+                             initializer=_set_torch_threads, initargs=(threads,)) as pool:
+        futures = [pool.submit(fn, *args) for args in calls]
+        for fut in futures:
+            yield fut.result()
 
 
 def run_jobs(jobs_: Sequence[NetworkJob], *, cache: str | os.PathLike[str] | None = None, jobs: int = 1,
@@ -104,14 +151,11 @@ def run_jobs(jobs_: Sequence[NetworkJob], *, cache: str | os.PathLike[str] | Non
     results: list[TrainResult | None] = [_cached(j, folder) for j in jobs_]
     todo = [i for i, r in enumerate(results) if r is None]
     if jobs > 1 and len(todo) > 1:
-        threads = max(1, (os.cpu_count() or 1) // jobs)
-        with ProcessPoolExecutor(max_workers=min(jobs, len(todo)), mp_context=get_context("spawn"),
-                                 initializer=_worker_init, initargs=(threads,)) as pool:
-            futures = {i: pool.submit(_run, replace(jobs_[i], config=_threads(jobs_[i].config, threads)), False)
-                       for i in todo}
-            for i, fut in futures.items():
-                results[i] = fut.result()
-                _store(jobs_[i], results[i], folder)
+        threads = threads_per_process(jobs)
+        calls = [(replace(jobs_[i], config=_threads(jobs_[i].config, threads)), False) for i in todo]
+        for res, i in zip(in_processes(_run, calls, processes=jobs, threads=threads), todo):
+            results[i] = res
+            _store(jobs_[i], res, folder)
     else:
         for i in todo:
             results[i] = _run(jobs_[i], progress)

@@ -1,12 +1,15 @@
-"""The paper's experiment as one configuration of the leaderboard's engine.
+"""The paper's experiment end to end: KF, one DANAE per angle and seed, Table 1 or 2, Figure 1 or 2.
 
-:func:`reproduce` runs the paper's KF and the paper's DANAE (raw targets, every target sample,
-no frame alignment, metrics on all samples) through :func:`danae_lite.leaderboard.run_leaderboard`,
-the same code that evaluates every other method, and returns a :class:`Reproduction` (Table 1
-or 2 and Figure 1 or 2) that can write ``metrics.json``, ``metrics.csv``, the per-seed table
-and the figure. :func:`seed_study` is the step-by-step view of chapter 3: the networks of
-:func:`danae_lite.networks.train_networks` evaluated recording by recording, with both of the
-paper's reconstructions (overlap average and tiles).
+:func:`reproduce` runs the paper's KF (:func:`filter_all`) on every recording and the paper's
+DANAE (raw targets, every target sample, no frame alignment) on its output
+(:func:`seed_study`, i.e. :class:`danae_lite.paper_danae.PaperDanae`, the estimator behind the
+leaderboard's ``danae`` too), and scores both on the test recordings with the leaderboard's
+rule (:func:`danae_lite.scoring.score_rows`: all test samples taken together, mean over
+seeds), on all samples and on the clean ones. It returns a :class:`Reproduction` (Table 1 or 2
+and Figure 1 or 2) that can write ``metrics.json``, ``metrics.csv``, the per-seed table and
+the figure. :func:`seed_study` is also the step-by-step view of chapter 3: the networks
+evaluated recording by recording, with both of the paper's reconstructions (overlap average
+and tiles).
 
 Angles are (roll, pitch, yaw) [rad] as everywhere in the package. As in the paper, one network
 is trained per angle, on the KF estimate of that angle as input and the ground truth of the
@@ -20,22 +23,22 @@ import time
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
+import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from . import kalman, metrics
-from .angles import ANGLES
+from . import figures, kalman, metrics, plots
+from .angles import ANGLES, wrap
 from .datasets import Experiment
+from .figures import PAPER_FIGURES, PaperFigure
+from .groundtruth import clean_mask
+from .paper_danae import PaperDanae
 from .recording import DataError, Recording
-from .train import TrainConfig, TrainResult, predict
-
-if TYPE_CHECKING:
-    import matplotlib.pyplot as plt
-
-    from .figures import PaperFigure
+from .scoring import SUBSETS, plain, score_rows, seed_metrics
+from .train import TrainConfig, TrainResult, validation_tail
 
 CSV_COLUMNS: tuple[str, ...] = ("method", "angle", "mean_dev", "max_dev", "rmse", "rmse_std",
                                 "paper_mean_dev", "paper_max_dev", "paper_rmse")
@@ -99,30 +102,31 @@ def seed_study(
     that no window crosses two recordings; ``cache`` and ``jobs`` are passed to
     :func:`danae_lite.networks.train_networks`.
     """
-    from .networks import train_networks
-
-    results = train_networks({a: [estimates[r.name][:, ANGLES.index(a)] for r in train_recs] for a in angles},
-                             {a: [r.euler[:, ANGLES.index(a)] for r in train_recs] for a in angles},
-                             config or TrainConfig(), seeds, tag="danae",
-                             metadata={"train": [r.name for r in train_recs]}, cache=cache, jobs=jobs,
-                             progress=progress)
+    model = PaperDanae(angles, targets="raw", config=config, seeds=seeds, tag="danae",
+                       metadata={"train": [r.name for r in train_recs]}, cache=cache, jobs=jobs, progress=progress)
+    model.fit([estimates[r.name] for r in train_recs], [r.euler for r in train_recs])
+    out = {(rec.name, stitch): model.predict(estimates[rec.name], stitch=stitch)
+           for rec in test_recs for stitch in stitches}
     preds: dict[tuple[str, int, str], dict[str, NDArray[np.float64]]] = {}
     rows = []
-    for (angle, seed), res in results.items():
-        k = ANGLES.index(angle)
+    for angle, seed in model.results_:
+        k, i = ANGLES.index(angle), model.seeds.index(seed)
         for rec in test_recs:
             est, truth = estimates[rec.name][:, k], rec.euler[:, k]
             rows.append(_row(rec.name, angle, seed, "kf", est, truth))
             for stitch in stitches:
-                pred = predict(res, est, stitch=stitch)[:, 0]
+                pred = out[(rec.name, stitch)][i][:, k]
                 preds.setdefault((angle, seed, stitch), {})[rec.name] = pred
                 rows.append(_row(rec.name, angle, seed, f"danae ({stitch})", pred, truth))
-    return SeedStudy(results=results, predictions=preds, table=pd.DataFrame(rows))
+    return SeedStudy(results=model.results_, predictions=preds, table=pd.DataFrame(rows))
 
 
-def _row(test: str, angle: str, seed: int, method: str, est: NDArray[np.float64], truth: NDArray[np.float64]) -> dict:
-    ok = np.isfinite(est)  # the tiles reconstruction leaves the tail as NaN
-    m = metrics.metric_table(est[ok], truth[ok], angles=(angle,))[angle]
+def _row(test: str, angle: str, seed: int, method: str, est: NDArray[np.float64],
+         truth: NDArray[np.float64]) -> dict[str, Any]:
+    """One row of :attr:`SeedStudy.table`: the paper's metrics [rad] of one angle and seed on
+    the samples the estimate covers (the tiles reconstruction leaves the tail as NaN)."""
+    ok = np.isfinite(est)
+    (m,) = seed_metrics([est], truth, angle, ok)
     return {"test": test, "angle": angle, "seed": int(seed), "method": method, "samples": int(ok.sum()), **m.to_dict()}
 
 
@@ -138,7 +142,7 @@ def check_lengths(exp: Experiment, config: TrainConfig) -> None:
     short to train on (a window plus a validation block) or to test (one window)."""
     w = config.window
     for rec in exp.train:
-        n_val = 0 if config.val_fraction == 0 else max(w, int(round(config.val_fraction * len(rec))))
+        n_val = validation_tail(len(rec), w, config.val_fraction)
         if len(rec) - n_val < w:
             raise DataError(f"training recording {rec.name} has {len(rec)} samples; at least {2 * w} are needed "
                             f"(a {w}-sample window to train on plus a validation block)")
@@ -165,6 +169,64 @@ def paper_values(experiment: str, angles: Sequence[str]) -> dict[str, dict[str, 
         out[method] = {a: {m: float(v) for m, v in vals.items()}  # type: ignore[arg-type]
                        for a, vals in per_angle.items() if all(v is not None for v in vals.values())}
     return out if any(out.values()) else None
+
+
+SCORE_COLUMNS: tuple[str, ...] = ("method", "samples", "angle", "mean_dev", "max_dev", "rmse", "rmse_std", "n")
+"""Columns of :attr:`Scores.table`: method "kf" or "danae", samples "all" or "clean", metrics
+[rad] (mean over seeds; ``rmse_std`` their sample std, NaN with one seed and for the KF), ``n``
+the sample count."""
+
+
+@dataclass
+class Scores:
+    """The paper's metrics of a reproduction, by the leaderboard's rule
+    (:func:`danae_lite.scoring.score_rows`: all test samples taken together, errors wrapped,
+    mean over seeds), on all samples and on the clean ones."""
+
+    table: pd.DataFrame
+    """:data:`SCORE_COLUMNS`, one row per method, subset and angle."""
+    clean: dict[str, NDArray[np.bool_]]
+    """Clean ground-truth mask (:func:`danae_lite.groundtruth.clean_mask`) per recording name,
+    training and test."""
+    predictions: dict[str, dict[str, list[NDArray[np.float64]]]]
+    """``{"kf" | "danae": {test recording: [(N, 3) roll, pitch, yaw [rad], one per seed]}}`` as
+    scored: the KF's yaw wrapped to [-π, π), DANAE's NaN for an angle without a network."""
+
+    def blocks(self, samples: str, angles: Sequence[str]) -> tuple[dict[str, MetricDict], dict[str, MetricDict]]:
+        """``(kf, danae)``: ``{angle: {mean_dev, max_dev, rmse}}`` [rad] on ``samples`` ("all" or
+        "clean"), DANAE's also with ``rmse_std``."""
+        rows = self.table[self.table.samples == samples].set_index(["method", "angle"])
+        out = {m: {a: {k: float(rows.loc[(m, a), k]) for k in metrics.METRICS} for a in angles}
+               for m in ("kf", "danae")}
+        for a in angles:
+            out["danae"][a]["rmse_std"] = float(rows.loc[("danae", a), "rmse_std"])
+        return out["kf"], out["danae"]
+
+
+def score(exp: Experiment, estimates: dict[str, NDArray[np.float64]], study: SeedStudy,
+          angles: Sequence[str], seeds: Sequence[int]) -> Scores:
+    """Score the paper's KF (``estimates``, its yaw wrapped) and DANAE (the overlap predictions
+    of ``study``, one per seed) on ``exp.test``, on all and on the clean samples."""
+    clean = {r.name: clean_mask(r) for r in [*exp.train, *exp.test]}
+    preds: dict[str, dict[str, list[NDArray[np.float64]]]] = {"kf": {}, "danae": {}}
+    for r in exp.test:
+        kf = estimates[r.name].copy()
+        kf[:, 2] = wrap(kf[:, 2])
+        preds["kf"][r.name] = [kf]
+        preds["danae"][r.name] = []
+        for seed in seeds:
+            e = np.full((len(r), 3), np.nan)
+            for a in angles:
+                e[:, ANGLES.index(a)] = study.predictions[(a, seed, "overlap")][r.name]
+            preds["danae"][r.name].append(e)
+    truth = np.concatenate([r.euler for r in exp.test])
+    ok = np.concatenate([clean[r.name] for r in exp.test])
+    rows = []
+    for method, per_test in preds.items():
+        n_seeds = len(per_test[exp.test[0].name])
+        joined = [np.concatenate([per_test[r.name][s] for r in exp.test]) for s in range(n_seeds)]
+        rows += [{"method": method, **row} for row in score_rows(joined, truth, ok, angles)]
+    return Scores(table=pd.DataFrame(rows, columns=list(SCORE_COLUMNS)), clean=clean, predictions=preds)
 
 
 @dataclass
@@ -200,26 +262,24 @@ class Reproduction:
     """Training settings shared by every network (the seed is replaced per network)."""
     kf_config: kalman.KFConfig
     """Filter settings."""
-    leaderboard: Any = None
-    """The engine's :class:`~danae_lite.leaderboard.Leaderboard` behind these numbers (its
-    ``table`` holds the metrics on all and on clean samples, ``clean`` the masks)."""
+    scores: Scores
+    """The metrics on all and on clean test samples, the clean masks and the test predictions."""
+
+    @property
+    def leaderboard(self) -> Scores:
+        """:attr:`scores`, under the name of the engine that once produced them (chapter 4 reads
+        ``rep.leaderboard.clean``)."""
+        return self.scores
 
     def metrics_on(self, samples: str = "all") -> tuple[dict[str, MetricDict], dict[str, MetricDict]]:
         """``(kf, danae)`` as :attr:`kf` / :attr:`danae`, on ``"all"`` test samples (those
         attributes) or on the ``"clean"`` ones (ground-truth glitches of
         :mod:`danae_lite.groundtruth` left out)."""
-        if samples == "all" or self.leaderboard is None:
-            if samples != "all":
-                raise ValueError("this reproduction has no clean-sample metrics (no leaderboard attached)")
-            return self.kf, self.danae
-        if samples != "clean":
+        if samples not in SUBSETS:
             raise ValueError(f"samples={samples!r}: choose 'all' or 'clean'")
-        rows = self.leaderboard.table[self.leaderboard.table.samples == "clean"].set_index(["method", "angle"])
-        out = {m: {a: {k: float(rows.loc[(m, a), k]) for k in metrics.METRICS} for a in self.angles}
-               for m in ("paper_kf", "danae")}
-        for a in self.angles:
-            out["danae"][a]["rmse_std"] = float(rows.loc[("danae", a), "rmse_std"])
-        return out["paper_kf"], out["danae"]
+        if samples == "all":
+            return self.kf, self.danae
+        return self.scores.blocks("clean", self.angles)
 
     @property
     def data(self) -> str:
@@ -245,9 +305,9 @@ class Reproduction:
             "train": self.train,
             "test": self.test,
             "seeds": list(self.seeds),
-            "kf": self.kf,
-            "danae": {a: {k: (None if not np.isfinite(v) else v) for k, v in m.items()} for a, m in self.danae.items()},
-            "paper": self.paper,
+            "kf": plain(self.kf),
+            "danae": plain(self.danae),
+            "paper": plain(self.paper),
             "seconds": {k: float(self.seconds[k]) for k in ("kf", "train", "total")},
         }
 
@@ -311,8 +371,6 @@ class Reproduction:
         })
 
     def _figure_spec(self, spec: PaperFigure | None) -> PaperFigure:
-        from .figures import PAPER_FIGURES
-
         return spec if spec is not None else PAPER_FIGURES[self.experiment.name]
 
     def figure_series(self, spec: PaperFigure | None = None, seed: int | None = None) -> pd.DataFrame:
@@ -324,8 +382,6 @@ class Reproduction:
         Returns a :func:`~danae_lite.figures.figure_series` table: ``time_s`` [s],
         ``ground_truth``, ``kf``, ``danae`` [rad], indexed by test sample.
         """
-        from . import figures
-
         spec = self._figure_spec(spec)
         seed = self.seeds[0] if seed is None else int(seed)
         rec = self.experiment.test[0]
@@ -336,8 +392,6 @@ class Reproduction:
 
     def plot_figure(self, spec: PaperFigure | None = None, seed: int | None = None) -> plt.Figure:
         """The paper's figure recreated (KF above, DANAE below, each against ground truth)."""
-        from . import figures
-
         spec = self._figure_spec(spec)
         seed = self.seeds[0] if seed is None else int(seed)
         series = self.figure_series(spec, seed)
@@ -349,10 +403,6 @@ class Reproduction:
         """Write ``metrics.json``, ``metrics.csv``, ``seed_table.csv`` and the paper's figure
         (``figureN_<angle>.csv`` with its samples, ``figureN_<angle>.png``) into ``out_dir``
         (created if needed); return the paths written, ``metrics.json`` first."""
-        import matplotlib.pyplot as plt
-
-        from . import plots
-
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         spec = self._figure_spec(None)
@@ -384,9 +434,12 @@ def reproduce(
     """Run the paper's experiment on ``exp``: KF on every recording, one DANAE per angle and
     seed trained on ``exp.train``, the paper's metrics on ``exp.test``.
 
-    It is the leaderboard (:func:`danae_lite.leaderboard.run_leaderboard`) configured as the
-    paper: methods ``paper_kf`` and ``danae`` with raw targets on every sample
-    (``Danae(targets="raw", clean_targets=False)``), no frame alignment, metrics on all samples.
+    The paper's configuration of the leaderboard's methods ``paper_kf`` and ``danae``: the KF
+    (``kf_config``) on the recordings as loaded (no frame alignment), DANAE
+    (:class:`~danae_lite.paper_danae.PaperDanae`) with raw targets on every target sample, the
+    metrics of :func:`danae_lite.scoring.score_rows`; ``run_leaderboard(exp, extra=[PaperKF(),
+    Danae(targets="raw", clean_targets=False)], align=False)`` gives the same numbers
+    (``tests/test_pipeline.py``).
 
     Parameters
     ----------
@@ -407,52 +460,41 @@ def reproduce(
         together (errors wrapped), then mean and standard deviation over seeds
         (:func:`danae_lite.metrics.spread`: the standard deviation is NaN with one seed).
     """
-    from .baselines import Danae, PaperKF
-    from .leaderboard import run_leaderboard
-
     t_start = time.perf_counter()
     say = log or (lambda _line: None)
+    angles, seeds = _checked(exp, angles, seeds)
+    check_lengths(exp, config)
+    kf_config = kf_config or kalman.KFConfig()
+    estimates = filter_all([*exp.train, *exp.test], kf_config)
+    t_kf = time.perf_counter() - t_start
+    say(f"KF on {len(estimates)} recordings: {t_kf:.2f} s")
+    t0 = time.perf_counter()
+    study = seed_study(exp.train, exp.test, estimates, angles=angles, seeds=seeds, config=config,
+                       stitches=("overlap",), progress=progress, cache=cache, jobs=jobs)
+    t_train = time.perf_counter() - t0
+    for (angle, seed), res in study.results.items():
+        t = study.table[(study.table.angle == angle) & (study.table.seed == seed)]
+        say(f"  {angle:<5} seed {seed}: {res.steps} steps in {res.seconds:.1f} s on {res.device}; test RMSE "
+            f"KF {t[t.method == 'kf'].rmse.mean():.4f} -> DANAE {t[t.method == 'danae (overlap)'].rmse.mean():.4f} rad")
+    scores = score(exp, estimates, study, angles, seeds)
+    kf, danae = scores.blocks("all", angles)
+    return Reproduction(
+        experiment=exp, angles=angles, seeds=seeds, estimates=estimates, study=study, kf=kf, danae=danae,
+        paper=paper_values(exp.name, angles), seconds={"kf": t_kf, "train": t_train,
+                                                       "total": time.perf_counter() - t_start},
+        config=config, kf_config=kf_config, scores=scores)
+
+
+def _checked(exp: Experiment, angles: Sequence[str], seeds: Sequence[int]) -> tuple[tuple[str, ...], list[int]]:
+    """``angles`` as a tuple and ``seeds`` as ints; ValueError for an empty or unknown angle set,
+    repeated or no seeds, or a recording name used twice."""
     angles, seeds = tuple(angles), [int(s) for s in seeds]
     unknown = [a for a in angles if a not in ANGLES]
     if not angles or unknown:
         raise ValueError(f"angles must be a non-empty subset of {ANGLES}, got {angles}")
     if not seeds or len(set(seeds)) != len(seeds):
         raise ValueError(f"seeds must be distinct and non-empty, got {seeds}")
-    check_lengths(exp, config)
-    kf = PaperKF(kf_config)
-    danae = Danae(targets="raw", clean_targets=False, angles=angles)
-    board = run_leaderboard(exp, methods=(), extra=[kf, danae], seeds=seeds, train_config=config, cache=cache,
-                            progress=progress, align=False, jobs=jobs)
-    estimates = {**danae.kf_train, **{r.name: kf.raw(r) for r in exp.test}}
-    say(f"KF on {len(exp.train) + len(exp.test)} recordings: {board.seconds['paper_kf']:.2f} s")
-    study = _study(exp, estimates, danae, board)
-    for (angle, seed), res in danae.results.items():
-        t = study.table[(study.table.angle == angle) & (study.table.seed == seed)]
-        say(f"  {angle:<5} seed {seed}: {res.steps} steps in {res.seconds:.1f} s on {res.device}; test RMSE "
-            f"KF {t[t.method == 'kf'].rmse.mean():.4f} -> DANAE {t[t.method == 'danae (overlap)'].rmse.mean():.4f} rad")
-    rows = board.table[board.table.samples == "all"].set_index(["method", "angle"])
-    block = {m: {a: {k: float(rows.loc[(m, a), k]) for k in metrics.METRICS} for a in angles}
-             for m in ("paper_kf", "danae")}
-    for a in angles:
-        block["danae"][a]["rmse_std"] = float(rows.loc[("danae", a), "rmse_std"])
-    return Reproduction(
-        experiment=exp, angles=angles, seeds=seeds, estimates=estimates, study=study, kf=block["paper_kf"],
-        danae=block["danae"], paper=paper_values(exp.name, angles),
-        seconds={"kf": board.seconds["paper_kf"], "train": board.seconds["danae"],
-                 "total": time.perf_counter() - t_start},
-        config=config, kf_config=kf.config, leaderboard=board)
-
-
-def _study(exp: Experiment, estimates: dict[str, NDArray[np.float64]], danae: Any, board: Any) -> SeedStudy:
-    """The per-recording view of a reproduction's DANAE (stitch "overlap")."""
-    preds: dict[tuple[str, int, str], dict[str, NDArray[np.float64]]] = {}
-    rows = []
-    for (angle, seed), _ in danae.results.items():
-        k = ANGLES.index(angle)
-        s_index = list(board.seeds).index(seed)
-        for rec in exp.test:
-            pred = board.predictions["danae"][rec.name][s_index][:, k]
-            preds.setdefault((angle, seed, "overlap"), {})[rec.name] = pred
-            rows.append(_row(rec.name, angle, seed, "kf", estimates[rec.name][:, k], rec.euler[:, k]))
-            rows.append(_row(rec.name, angle, seed, "danae (overlap)", pred, rec.euler[:, k]))
-    return SeedStudy(results=dict(danae.results), predictions=preds, table=pd.DataFrame(rows))
+    names = [r.name for r in [*exp.train, *exp.test]]
+    if len(set(names)) != len(names):
+        raise ValueError(f"recording names must be unique across training and test, got {names}")
+    return angles, seeds

@@ -7,7 +7,7 @@ radians unless a label says otherwise.
 """
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping
 
 import matplotlib as mpl
 import matplotlib.pyplot as plt
@@ -124,38 +124,3 @@ def plot_series(
         ax.set_title(title)
     ax.legend(loc="best", fontsize=8)
     return ax
-
-
-def plot_band(t: ArrayLike, mean: ArrayLike, std: ArrayLike, *, ax: plt.Axes | None = None,
-              color: str = COLORS["kf"], label: str = "±1σ") -> plt.Axes:
-    """Shade ``mean ± std`` against time ``t`` [s]."""
-    ax = ax or plt.gca()
-    m, s = np.asarray(mean, dtype=float), np.asarray(std, dtype=float)
-    ax.fill_between(np.asarray(t, dtype=float), m - s, m + s, color=color, alpha=0.2, lw=0, label=label)
-    return ax
-
-
-def plot_angles(
-    t: ArrayLike,
-    truth: ArrayLike,
-    estimates: Mapping[str, ArrayLike],
-    *,
-    angles: Sequence[str] = ("roll", "pitch", "yaw"),
-    title: str | None = None,
-) -> plt.Figure:
-    """One row per angle: ground truth and each estimate, arrays of shape (N, 3) [rad]."""
-    from .angles import ANGLES
-
-    fig, axes = plt.subplots(len(angles), 1, figsize=(9.0, 2.4 * len(angles)), sharex=True, squeeze=False)
-    truth = np.asarray(truth, dtype=float)
-    for ax, angle in zip(axes[:, 0], angles):
-        k = ANGLES.index(angle)
-        series = {"truth": truth[:, k]}
-        series.update({name: np.asarray(est, dtype=float)[:, k] for name, est in estimates.items()})
-        plot_series(t, series, ax=ax, ylabel=angle_label(angle))
-        ax.set_xlabel("")
-    axes[-1, 0].set_xlabel("time [s]")
-    if title:
-        fig.suptitle(title)
-    fig.tight_layout()
-    return fig

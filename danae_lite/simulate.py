@@ -39,13 +39,11 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from .angles import euler_to_quat
+from .angles import G, euler_to_quat
 from .recording import Recording
 
 Array = NDArray[np.float64]
 
-G = 9.80665
-"""Standard gravity [m/s²], used to convert accelerations to g."""
 FIELD_STRENGTH = 48.0
 """Earth magnetic field strength B [µT]."""
 FIELD_INCLINATION = np.deg2rad(60.0)

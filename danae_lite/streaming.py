@@ -29,50 +29,11 @@ from typing import Any
 import numpy as np
 import torch
 
-from .model import DanaeBase, DanaeCausal
+from .model import DanaeCausal
+from .train import TorchSettings, as_2d
+from .train_types import network_of
 
 __all__ = ["StreamingDanae", "measure_latency", "predict_causal"]
-
-
-def _causal_net(model_or_result: Any) -> DanaeCausal:
-    """The :class:`DanaeCausal` inside a network or a :class:`~danae_lite.train.TrainResult`."""
-    net = getattr(model_or_result, "model", model_or_result)
-    if not isinstance(net, DanaeCausal):
-        kind = type(net).__name__
-        hint = (" (the paper's networks see future samples; train with TrainConfig(arch='causal'))"
-                if isinstance(net, DanaeBase) else "")
-        raise TypeError(f"expected a DanaeCausal network or a TrainResult holding one, got {kind}{hint}")
-    return net
-
-
-def _as_2d(x: np.ndarray, channels: int, what: str = "x") -> np.ndarray:
-    x = np.asarray(x, dtype=np.float32)
-    if x.ndim == 1 and channels == 1:
-        x = x[:, None]
-    if x.ndim != 2 or x.shape[1] != channels:
-        raise ValueError(f"{what}: expected shape (N, {channels})" + (" or (N,)" if channels == 1 else "")
-                         + f", got {x.shape}")
-    if len(x) == 0:
-        raise ValueError(f"{what}: empty recording")
-    if not np.isfinite(x).all():
-        raise ValueError(f"{what}: contains NaN or inf")
-    return x
-
-
-class _Threads:
-    """Set torch's intra-op thread count for a block and restore it (no-op when already equal)."""
-
-    def __init__(self, n: int | None) -> None:
-        self.n = n
-
-    def __enter__(self) -> None:
-        self.old = torch.get_num_threads()
-        if self.n is not None and self.n != self.old:
-            torch.set_num_threads(self.n)
-
-    def __exit__(self, *exc: object) -> None:
-        if torch.get_num_threads() != self.old:
-            torch.set_num_threads(self.old)
 
 
 @torch.no_grad()
@@ -109,10 +70,10 @@ def predict_causal(
         The network's estimate (computed in float32), in the units of its training targets
         (rad).
     """
-    net = _causal_net(model_or_result)
+    net = network_of(model_or_result, DanaeCausal)
     if int(chunk) != chunk or chunk < 1:
         raise ValueError(f"chunk must be a positive integer, got {chunk!r}")
-    x = _as_2d(x, net.in_channels)
+    x = as_2d(x, "x", net.in_channels)
     n, rf = len(x), net.receptive_field
     padded = np.concatenate([np.repeat(x[:1], rf - 1, axis=0), x])  # (N + R - 1, C_in)
     p = next(net.parameters())
@@ -120,7 +81,7 @@ def predict_causal(
     net.eval()
     out = np.empty((n, net.out_channels), dtype=np.float64)
     try:
-        with _Threads(num_threads):
+        with TorchSettings(num_threads):
             for s in range(0, n, chunk):
                 e = min(n, s + chunk)
                 # outputs s..e-1 need padded inputs s .. e - 1 + R - 1
@@ -168,7 +129,7 @@ class StreamingDanae:
     """
 
     def __init__(self, model_or_result: Any, *, num_threads: int | None = 1) -> None:
-        self.net = _causal_net(model_or_result)
+        self.net = network_of(model_or_result, DanaeCausal)
         self.net.eval()
         self.num_threads = num_threads
         self.receptive_field = self.net.receptive_field
@@ -251,13 +212,31 @@ class StreamingDanae:
 
         ``reset=True`` (default) starts from an empty history; ``False`` continues the stream.
         """
-        x = _as_2d(x, self.in_channels)
+        x = as_2d(x, "x", self.in_channels)
         if reset:
             self.reset()
         out = np.empty((len(x), self.out_channels), dtype=np.float64)
         for i in range(len(x)):
             out[i] = self._step(x[i])
         return out
+
+
+def _step_times_ms(streamer: StreamingDanae, x: np.ndarray, warmup: int) -> np.ndarray:
+    """Wall-clock time [ms] of each :meth:`StreamingDanae.step` over ``x[warmup:]``, after
+    ``warmup`` untimed steps; the streamer is reset before and after."""
+    times = np.empty(len(x) - warmup)
+    clock = time.perf_counter
+    streamer.reset()
+    try:
+        for i in range(warmup):
+            streamer.step(x[i])
+        for i in range(len(times)):
+            t0 = clock()
+            streamer.step(x[warmup + i])
+            times[i] = clock() - t0
+    finally:
+        streamer.reset()
+    return times * 1e3
 
 
 def measure_latency(
@@ -305,22 +284,10 @@ def measure_latency(
     if x is None:
         rng = np.random.default_rng(seed)
         x = np.cumsum(rng.normal(0.0, 0.01, (total, streamer.in_channels)), axis=0)
-    x = _as_2d(x, streamer.in_channels)
+    x = as_2d(x, "x", streamer.in_channels)
     if len(x) < total:
         raise ValueError(f"x has {len(x)} samples, need warmup + n = {total}")
-    times = np.empty(n)
-    clock = time.perf_counter
-    streamer.reset()
-    try:
-        for i in range(warmup):
-            streamer.step(x[i])
-        for i in range(n):
-            t0 = clock()
-            streamer.step(x[warmup + i])
-            times[i] = clock() - t0
-    finally:
-        streamer.reset()
-    ms = times * 1e3
+    ms = _step_times_ms(streamer, x[:total], warmup)
     period = 1000.0 / fs
     med, p99 = float(np.median(ms)), float(np.percentile(ms, 99))
     return dict(

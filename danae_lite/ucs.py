@@ -54,10 +54,9 @@ import pandas as pd
 from scipy.spatial.transform import Rotation
 
 from ._loading import line_spans, parse_numeric, read_bytes
+from .angles import G
 from .recording import DataError, Recording
 
-G = 9.80665
-"""Standard gravity [m/s²]."""
 MIN_SAMPLES = 20
 """Default minimum length: one DANAE window of 20 samples."""
 HEADER: tuple[str, ...] = (

@@ -1,6 +1,6 @@
 """DANAE beyond the paper: on any filter's output, with more input channels, yaw on the circle, causal.
 
-Every variant is a :class:`~danae_lite.baselines.Method`, so the leaderboard fits and
+Every variant is a :class:`~danae_lite.methods.Method`, so the leaderboard fits and
 evaluates it exactly like the baselines (``run_leaderboard(..., extra=[...])``).
 
 * **Filter agnostic.** ``DanaeOn(source="vqf")`` trains on the output of any leaderboard
@@ -12,60 +12,35 @@ evaluates it exactly like the baselines (``run_leaderboard(..., extra=[...])``).
   angles plus the accelerometer's roll and pitch, the tilt-compensated magnetic heading (as
   sin/cos) and the Euler rates from the gyro — 11 channels, standardised per channel with the
   training recordings' mean and std (``TrainConfig(normalize="standard")``).
-* **Causal** (``arch="causal"``): the network of :class:`~danae_lite.model.DanaeCausal`; each
-  output sample depends only on present and past inputs, so it runs on-line
-  (:class:`~danae_lite.streaming.StreamingDanae`). The features above are per-sample, so
-  causality is kept end to end when the source filter is causal.
+* **Causal** (``arch="causal"``, :data:`~danae_lite.features.CAUSAL_SETTINGS`): the network
+  of :class:`~danae_lite.model.DanaeCausal`; each output sample depends only on present and
+  past inputs, so it runs on-line (:class:`~danae_lite.streaming.StreamingDanae`). The
+  features above are per-sample, so causality is kept end to end when the source filter is
+  causal.
+
+The input channels, the causal settings and the network runner are shared with DANAE-res
+(:mod:`danae_lite.denoiser`) in :mod:`danae_lite.features`.
 """
 from __future__ import annotations
 
 from dataclasses import replace
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
+import pandas as pd
 from numpy.typing import NDArray
 
-from . import kalman
-from .baselines import Context, Method, make_method
+from .baselines import make_method
+from .datasets import Experiment
+from .features import ANGLE_CHANNELS, CAUSAL_SETTINGS, MULTI_CHANNELS, from_circle, multi_input, run_network, to_circle
+from .leaderboard import run_leaderboard
+from .methods import Context, Method, total_error_rmse
+from .metrics import reduction_pct
+from .networks import train_networks
 from .recording import Recording
-from .train import TrainConfig, predict
-
-if TYPE_CHECKING:
-    import pandas as pd
+from .train import TrainConfig, validation_tail
 
 Array = NDArray[np.float64]
-
-ANGLE_CHANNELS: tuple[str, ...] = ("roll", "pitch", "sin yaw", "cos yaw")
-"""Channels of :func:`to_circle` (and of every variant's target)."""
-MULTI_CHANNELS: tuple[str, ...] = (*ANGLE_CHANNELS, "roll acc", "pitch acc", "sin yaw mag", "cos yaw mag",
-                                   "roll rate", "pitch rate", "yaw rate")
-"""Input channels of the multi-input variant: angles [rad, -], accelerometer tilt [rad],
-magnetic heading [-], Euler rates [rad/s]."""
-
-
-def to_circle(euler: Array) -> Array:
-    """(N, 3) roll, pitch, yaw [rad] -> (N, 4) roll, pitch, sin yaw, cos yaw. NaN yaw -> 0, 0."""
-    e = np.asarray(euler, dtype=float)
-    sc = np.nan_to_num(np.column_stack([np.sin(e[:, 2]), np.cos(e[:, 2])]), nan=0.0)
-    return np.column_stack([e[:, :2], sc])
-
-
-def from_circle(x: Array) -> Array:
-    """(N, 4) -> (N, 3): yaw = atan2(sin, cos) in (-pi, pi] (the vector need not be unit length)."""
-    x = np.asarray(x, dtype=float)
-    return np.column_stack([x[:, 0], x[:, 1], np.arctan2(x[:, 2], x[:, 3])])
-
-
-def multi_input(rec: Recording, est: Array, north_yaw: float) -> Array:
-    """The 11 channels of :data:`MULTI_CHANNELS` for an aligned recording and a filter's
-    estimate ``est`` (N, 3) [rad] in the ground-truth frame. The heading from the
-    magnetometer is tilt-compensated with the estimate's roll and pitch and turned to the
-    ground-truth frame with ``north_yaw`` [rad]; the Euler rates use the same roll and pitch."""
-    est = np.asarray(est, dtype=float)
-    tilt = kalman.accel_tilt(rec.acc)
-    heading = kalman.mag_heading(rec.mag, est[:, 0], est[:, 1]) + north_yaw
-    rates = kalman.euler_rates(rec.gyro, est[:, 0], est[:, 1])
-    return np.column_stack([to_circle(est), tilt, np.sin(heading), np.cos(heading), rates])
 
 
 class DanaeOn(Method):
@@ -74,7 +49,7 @@ class DanaeOn(Method):
     Parameters
     ----------
     source : leaderboard method whose output is denoised ("paper_kf", "tuned_kf", "vqf", ...).
-    inputs : ``"angles"`` (the 4 circle channels) or ``"multi"`` (:data:`MULTI_CHANNELS`).
+    inputs : ``"angles"`` (the 4 circle channels) or ``"multi"`` (:data:`~danae_lite.features.MULTI_CHANNELS`).
     name : leaderboard name; default ``"danae[<source>]"`` / ``"danae-multi[<source>]"``
         (``-causal`` appended for the causal architecture).
     **train_overrides : fields of :class:`~danae_lite.train.TrainConfig` replacing the
@@ -105,9 +80,7 @@ class DanaeOn(Method):
     def config(self, seed: int) -> TrainConfig:
         return replace(self.ctx.train_config, seed=int(seed), normalize="standard", **self.overrides)
 
-    def fit(self, ctx: Context) -> "DanaeOn":
-        from .networks import train_networks
-
+    def fit(self, ctx: Context) -> DanaeOn:
         if self.source == "danae":
             raise ValueError("a DANAE variant cannot take DANAE's own output as its source")
         self.ctx = ctx
@@ -129,31 +102,24 @@ class DanaeOn(Method):
         x = self._features(rec)
         out = []
         for seed in self.ctx.seeds:
-            res = self.results[int(seed)]
-            if res.config.arch == "causal":
-                from .streaming import predict_causal
-
-                y = predict_causal(res, x)
-            else:
-                y = predict(res, x)
-            out.append(from_circle(y))
+            out.append(from_circle(run_network(self.results[int(seed)], x)))
         return out
 
 
 def validation_block(n: int, config: TrainConfig) -> slice:
     """The tail of an ``n``-sample training recording that training held out for validation
     (``max(window, round(val_fraction n))`` samples, as :func:`danae_lite.train.train` splits)."""
-    n_val = 0 if config.val_fraction == 0 else max(config.window, int(round(config.val_fraction * n)))
+    n_val = validation_tail(n, config.window, config.val_fraction)
     return slice(n - n_val, n)
 
 
 class Selected(Method):
     """The learned variant chosen on validation data: of ``candidates`` (unfitted
     :class:`DanaeOn` objects), the one with the lowest total rotation error RMSE
-    (:func:`danae_lite.baselines.total_error_rmse`) on the clean validation blocks of the
+    (:func:`danae_lite.methods.total_error_rmse`) on the clean validation blocks of the
     training recordings (:func:`validation_block`: samples none of the networks trained on),
-    scored with each candidate's first-seed network. Nothing of the test recordings takes part; ``params`` records every candidate's score and
-    the choice.
+    scored with each candidate's first-seed network. Nothing of the test recordings takes
+    part; ``params`` records every candidate's score and the choice.
     """
 
     def __init__(self, candidates: list[DanaeOn], name: str = "danae-selected") -> None:
@@ -165,9 +131,7 @@ class Selected(Method):
         self.description = "the DANAE variant with the lowest validation error among " + ", ".join(
             c.name for c in candidates)
 
-    def fit(self, ctx: Context) -> "Selected":
-        from .baselines import total_error_rmse
-
+    def fit(self, ctx: Context) -> Selected:
         self.ctx = ctx
         scores = {}
         for c in self.candidates:
@@ -193,9 +157,6 @@ class Selected(Method):
 # ---------------------------------------------------------------------------------------
 FILTER_SOURCES: tuple[str, ...] = ("paper_kf", "tuned_kf", "fusion", "vqf", "madgwick")
 """Filters whose output DANAE is trained on in the filter-agnostic study."""
-CAUSAL_SETTINGS: dict[str, Any] = {"arch": "causal", "hidden": 64, "window": 64, "loss_start": 30}
-"""The causal variant: 64 channels, dilations 1-8 (receptive field 31 samples), trained on
-64-sample windows with the loss on positions 30-63 only, where the full past is inside the window."""
 
 
 def filter_agnostic() -> list[DanaeOn]:
@@ -204,12 +165,12 @@ def filter_agnostic() -> list[DanaeOn]:
 
 
 def multi_input_variants(sources: tuple[str, ...] = ("paper_kf", "vqf")) -> list[DanaeOn]:
-    """Multi-input DANAE (:data:`MULTI_CHANNELS`) on each source."""
+    """Multi-input DANAE (:data:`~danae_lite.features.MULTI_CHANNELS`) on each source."""
     return [DanaeOn(s, inputs="multi") for s in sources]
 
 
 def causal_variant(source: str = "vqf") -> DanaeOn:
-    """Multi-input causal DANAE on a causal filter (:data:`CAUSAL_SETTINGS`): it runs on-line."""
+    """Multi-input causal DANAE on a causal filter (:data:`~danae_lite.features.CAUSAL_SETTINGS`): it runs on-line."""
     return DanaeOn(source, inputs="multi", **CAUSAL_SETTINGS)
 
 
@@ -236,7 +197,7 @@ def ablations() -> dict[str, DanaeOn]:
 
 def generalisation(scenarios: dict[str, Any], *, sources: tuple[str, ...] = ("paper_kf", "vqf"),
                    seeds: tuple[int, ...] = (0,), train_config: TrainConfig | None = None,
-                   cache: Any = None, methods: tuple[str, ...] | None = None) -> "pd.DataFrame":
+                   cache: Any = None, methods: tuple[str, ...] | None = None) -> pd.DataFrame:
     """Train on each scenario's training recordings, test on every scenario's test recordings.
 
     ``scenarios`` maps a label to an :class:`~danae_lite.datasets.Experiment`. For each (train,
@@ -245,12 +206,6 @@ def generalisation(scenarios: dict[str, Any], *, sources: tuple[str, ...] = ("pa
     angle: the filter's RMSE, DANAE's RMSE (mean over seeds) and the gain [%]
     ``100 (1 - danae / filter)``; negative gain = the learned correction hurts.
     """
-    import pandas as pd
-
-    from .datasets import Experiment
-    from .leaderboard import run_leaderboard
-    from .metrics import reduction_pct
-
     rows = []
     for a, exp_a in scenarios.items():
         for b, exp_b in scenarios.items():

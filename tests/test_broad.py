@@ -13,7 +13,7 @@ import pytest
 from scipy.io import savemat
 from scipy.spatial.transform import Rotation, Slerp
 
-from danae_lite import broad
+from danae_lite import angles, broad, broad_benchmark
 from danae_lite.recording import DataError, Recording
 from danae_lite.simulate import MAG_REF
 
@@ -112,20 +112,20 @@ def published_dir(broad_data_dir: Path) -> Path:
 
 def test_quat_multiply_matches_scipy_composition():
     p, q = random_rotations(50, 1), random_rotations(50, 2)
-    got = broad.quat_multiply(p.as_quat(), q.as_quat())
+    got = angles.quat_multiply(p.as_quat(), q.as_quat())
     assert rot_angle(got, (p * q).as_quat()).max() < 1e-12
-    one = broad.quat_multiply(p[0].as_quat(), q.as_quat())  # broadcast a single quaternion
+    one = angles.quat_multiply(p[0].as_quat(), q.as_quat())  # broadcast a single quaternion
     assert rot_angle(one, (p[0] * q).as_quat()).max() < 1e-12
 
 
 def test_enu_nwu_conversion_turns_north_onto_x():
     # a body whose x axis points north is rz(+90°) in ENU and the identity in NWU
-    q = broad.enu_to_nwu(rz(np.pi / 2).as_quat()[None])
+    q = angles.enu_to_nwu(rz(np.pi / 2).as_quat()[None])
     assert rot_angle(q, Rotation.identity().as_quat()[None])[0] < 1e-12
     r = random_rotations(20, 3).as_quat()
-    assert rot_angle(broad.nwu_to_enu(broad.enu_to_nwu(r)), r).max() < 1e-12
+    assert rot_angle(angles.nwu_to_enu(angles.enu_to_nwu(r)), r).max() < 1e-12
     # vectors: ENU east (1, 0, 0) is NWU (0, -1, 0)
-    np.testing.assert_allclose(Rotation.from_quat(broad.enu_to_nwu(Rotation.identity().as_quat()))
+    np.testing.assert_allclose(Rotation.from_quat(angles.enu_to_nwu(Rotation.identity().as_quat()))
                                .apply([1.0, 0.0, 0.0]), [0.0, -1.0, 0.0], atol=1e-12)
 
 
@@ -135,11 +135,11 @@ def test_enu_nwu_conversion_turns_north_onto_x():
 def test_pure_heading_error_gives_that_heading(angle_deg):
     truth = random_rotations(200, 4)
     est = rz(angle_deg * DEG) * truth  # rotation about the earth vertical
-    e = broad.error_angles(est.as_quat(), truth.as_quat())
+    e = broad_benchmark.error_angles(est.as_quat(), truth.as_quat())
     np.testing.assert_allclose(e[:, 0], angle_deg * DEG, atol=1e-9)   # total
     np.testing.assert_allclose(e[:, 1], angle_deg * DEG, atol=1e-9)   # heading
     np.testing.assert_allclose(e[:, 2], 0.0, atol=1e-6)               # inclination
-    r = broad.benchmark_rmse(est.as_quat(), truth.as_quat(), np.ones(200, bool))
+    r = broad_benchmark.benchmark_rmse(est.as_quat(), truth.as_quat(), np.ones(200, bool))
     assert r.total_rmse_deg == pytest.approx(angle_deg, abs=1e-7)
     assert r.heading_rmse_deg == pytest.approx(angle_deg, abs=1e-7)
     assert r.inclination_rmse_deg == pytest.approx(0.0, abs=1e-4)
@@ -152,7 +152,7 @@ def test_pure_tilt_error_gives_that_inclination(axis_deg, angle_deg):
     truth = random_rotations(100, 5)
     axis = np.array([np.cos(axis_deg * DEG), np.sin(axis_deg * DEG), 0.0])  # horizontal, earth frame
     est = Rotation.from_rotvec(axis * angle_deg * DEG) * truth
-    e = broad.error_angles(est.as_quat(), truth.as_quat())
+    e = broad_benchmark.error_angles(est.as_quat(), truth.as_quat())
     np.testing.assert_allclose(e[:, 0], angle_deg * DEG, atol=1e-9)
     np.testing.assert_allclose(e[:, 1], 0.0, atol=1e-9)
     np.testing.assert_allclose(e[:, 2], angle_deg * DEG, atol=1e-9)
@@ -162,7 +162,7 @@ def test_heading_then_tilt_splits_exactly_and_total_is_the_composite_angle():
     truth = random_rotations(100, 6)
     h, i = 30.0 * DEG, 20.0 * DEG
     est = rz(h) * Rotation.from_rotvec([i, 0.0, 0.0]) * truth
-    e = broad.error_angles(est.as_quat(), truth.as_quat())
+    e = broad_benchmark.error_angles(est.as_quat(), truth.as_quat())
     np.testing.assert_allclose(e[:, 1], h, atol=1e-9)
     np.testing.assert_allclose(e[:, 2], i, atol=1e-9)
     # the composite of rz(h) and rx(i) turns by 2 * arccos(cos(h/2) cos(i/2))
@@ -173,7 +173,7 @@ def test_errors_live_in_the_earth_frame_not_the_body_frame():
     # body lying on its side: a turn about the body z axis is a turn about a horizontal earth axis
     truth = Rotation.from_rotvec([np.pi / 2, 0.0, 0.0])
     est = truth * rz(15.0 * DEG)
-    e = broad.error_angles(est.as_quat()[None], truth.as_quat()[None])[0]
+    e = broad_benchmark.error_angles(est.as_quat()[None], truth.as_quat()[None])[0]
     np.testing.assert_allclose(e, [15.0 * DEG, 0.0, 15.0 * DEG], atol=1e-9)
 
 
@@ -183,8 +183,8 @@ def test_constant_heading_offset_is_not_removed_and_leaves_inclination_unchanged
     noisy = Rotation.from_rotvec(rng.normal(0.0, 2.0 * DEG, (300, 3))) * truth
     offset = rz(40.0 * DEG) * noisy
     mov = np.ones(300, bool)
-    base = broad.benchmark_rmse(noisy.as_quat(), truth.as_quat(), mov)
-    off = broad.benchmark_rmse(offset.as_quat(), truth.as_quat(), mov)
+    base = broad_benchmark.benchmark_rmse(noisy.as_quat(), truth.as_quat(), mov)
+    off = broad_benchmark.benchmark_rmse(offset.as_quat(), truth.as_quat(), mov)
     assert off.inclination_rmse_deg == pytest.approx(base.inclination_rmse_deg, rel=1e-9)
     assert off.heading_rmse_deg > 35.0 and off.total_rmse_deg > 35.0  # the offset is counted in full
 
@@ -192,10 +192,10 @@ def test_constant_heading_offset_is_not_removed_and_leaves_inclination_unchanged
 def test_metric_is_the_same_in_enu_and_nwu_and_ignores_quaternion_sign():
     truth, est = random_rotations(100, 9), random_rotations(100, 10)
     mov = np.ones(100, bool)
-    a = broad.benchmark_rmse(est.as_quat(), truth.as_quat(), mov)
-    b = broad.benchmark_rmse(broad.enu_to_nwu(est.as_quat()), broad.enu_to_nwu(truth.as_quat()), mov)
-    c = broad.benchmark_rmse(-est.as_quat(), 2.0 * truth.as_quat(), mov)  # sign and norm
-    for m in broad.METRICS:
+    a = broad_benchmark.benchmark_rmse(est.as_quat(), truth.as_quat(), mov)
+    b = broad_benchmark.benchmark_rmse(angles.enu_to_nwu(est.as_quat()), angles.enu_to_nwu(truth.as_quat()), mov)
+    c = broad_benchmark.benchmark_rmse(-est.as_quat(), 2.0 * truth.as_quat(), mov)  # sign and norm
+    for m in broad_benchmark.METRICS:
         assert getattr(b, m) == pytest.approx(getattr(a, m), rel=1e-10)
         assert getattr(c, m) == pytest.approx(getattr(a, m), rel=1e-10)
 
@@ -209,7 +209,7 @@ def test_rmse_uses_only_movement_samples_with_valid_truth():
     mov = np.r_[0, 0, np.ones(8)].astype(np.uint8)[:, None]                # (N, 1) 0/1 like the files
     truth_gap = truth.copy()
     truth_gap[5] = np.nan                                                   # an optical gap
-    r = broad.benchmark_rmse(est, truth_gap, mov)
+    r = broad_benchmark.benchmark_rmse(est, truth_gap, mov)
     used = np.r_[2:5, 6:10]
     assert r.n_samples == 7
     assert r.heading_rmse_deg == pytest.approx(np.degrees(np.sqrt(np.mean(angles[used] ** 2))), rel=1e-9)
@@ -233,7 +233,7 @@ def test_metric_rejects_bad_input(case, match):
     else:
         est = est[:, :3]
     with pytest.raises(ValueError, match=match):
-        broad.benchmark_rmse(est, truth, mov)
+        broad_benchmark.benchmark_rmse(est, truth, mov)
 
 
 # --- loader: conversions --------------------------------------------------------------------
@@ -280,8 +280,8 @@ def test_ground_truth_gaps_are_filled_marked_and_ignored_by_evaluate(tmp_path):
     assert rot_angle(q[150:160], ref).max() < 1e-12                      # slerp inside
     # evaluate() == the metric on the raw ground truth with its NaN rows (the benchmark's nanmean)
     est = (Rotation.from_rotvec([0.01, -0.02, 0.05]) * Rotation.from_quat(q)).as_quat()
-    raw = broad.enu_to_nwu(data["opt_quat"][:, [1, 2, 3, 0]])
-    got, want = broad.evaluate(rec, est), broad.benchmark_rmse(est, raw, data["movement"])
+    raw = angles.enu_to_nwu(data["opt_quat"][:, [1, 2, 3, 0]])
+    got, want = broad_benchmark.evaluate(rec, est), broad_benchmark.benchmark_rmse(est, raw, data["movement"])
     assert got.as_dict() == pytest.approx(want.as_dict(), rel=1e-12)
     assert got.n_samples == want.n_samples == 200 - 10
     sliced = rec.slice(100, 300)  # per-sample meta follows a slice
@@ -292,7 +292,7 @@ def test_evaluate_needs_a_broad_recording():
     rec = Recording("x", "test", 100.0, np.zeros((3, 3)), np.ones((3, 3)), np.ones((3, 3)),
                     np.tile([0.0, 0.0, 0.0, 1.0], (3, 1)))
     with pytest.raises(ValueError, match="load_trial"):
-        broad.evaluate(rec, rec.quat)
+        broad_benchmark.evaluate(rec, rec.quat)
 
 
 # --- loader: strict validation --------------------------------------------------------------
@@ -392,7 +392,7 @@ def test_trial_groups_and_index(tmp_broad):
     index = broad.trial_index(tmp_broad)
     assert index.members("slow") == ["02_slow_a"]
     assert [g[0] for g in index.groups] == ["all_trials", "undisturbed", "slow"]
-    means = broad.group_means({"02_slow_a": {"total_rmse_deg": 1.0}, "10_fast_b": {"total_rmse_deg": 3.0}}, index)
+    means = broad_benchmark.group_means({"02_slow_a": {"total_rmse_deg": 1.0}, "10_fast_b": {"total_rmse_deg": 3.0}}, index)
     assert means == {"all_trials": (2.0, 2), "undisturbed": (2.0, 2), "slow": (1.0, 1)}
     with pytest.raises(KeyError, match="no group 'fast'"):
         index.members("fast")
@@ -424,21 +424,21 @@ def test_published_reads_the_authors_json(tmp_path):
     doc = {"tagp_parameters": {"Kp": 0.74, "Ki": 0.0012}, "tagp_parameter_ind": [36, 12],
            "groups": {"all_trials": _figs(6.0)}, "trials": {"02_slow_a": _figs(3.0)}}
     (tmp_path / "results_mahony_average_rmse.json").write_text(json.dumps(doc))
-    pub = broad.published("mahony", tmp_path)
+    pub = broad_benchmark.published("mahony", tmp_path)
     assert pub.parameters == {"Kp": 0.74, "Ki": 0.0012} and pub.params == {"k_P": 0.74, "k_I": 0.0012}
     assert pub.trials["02_slow_a"] == {"total_rmse_deg": 3.0, "heading_rmse_deg": 1.5, "inclination_rmse_deg": 1.0}
     assert pub.trials_best["02_slow_a"]["total_rmse_deg"] == 2.0 and pub.groups["all_trials"]["total_rmse_deg"] == 6.0
-    assert broad.published("mahony", pub.path).trials == pub.trials  # the file itself works too
+    assert broad_benchmark.published("mahony", pub.path).trials == pub.trials  # the file itself works too
     del doc["trials"]["02_slow_a"]["minimum_value"]
     (tmp_path / "results_mahony_average_rmse.json").write_text(json.dumps(doc))
     with pytest.raises(DataError, match=r"trials\['02_slow_a'\]\['minimum_value'\] is missing"):
-        broad.published("mahony", tmp_path)
+        broad_benchmark.published("mahony", tmp_path)
     with pytest.raises(DataError, match="expected \\['beta'\\]"):
-        broad.published("madgwick", tmp_path / "results_mahony_average_rmse.json")
+        broad_benchmark.published("madgwick", tmp_path / "results_mahony_average_rmse.json")
     with pytest.raises(DataError, match="not found"):
-        broad.published("madgwick", tmp_path)
+        broad_benchmark.published("madgwick", tmp_path)
     with pytest.raises(ValueError, match="unknown filter 'vqf'"):
-        broad.published("vqf", tmp_path)
+        broad_benchmark.published("vqf", tmp_path)
 
 
 # --- the benchmark's filters -------------------------------------------------------------------
@@ -447,11 +447,11 @@ def test_initial_quat_matches_the_benchmark_formula_and_its_quirk():
     # level sensor, x axis east (NWU yaw -90°): the benchmark's initial state is exact
     for yaw_deg, expected_deg in ((-90.0, -90.0), (30.0, 150.0), (150.0, 30.0), (0.0, 180.0)):
         truth = Rotation.from_euler("ZYX", [yaw_deg, 0.0, 0.0], degrees=True)
-        q = broad.benchmark_initial_quat(truth.inv().apply([0, 0, 9.81]), truth.inv().apply(MAG_REF))
+        q = broad_benchmark.benchmark_initial_quat(truth.inv().apply([0, 0, 9.81]), truth.inv().apply(MAG_REF))
         yaw = Rotation.from_quat(q).as_euler("ZYX", degrees=True)[0]
         assert abs((yaw - expected_deg + 180.0) % 360.0 - 180.0) < 1e-9, (yaw_deg, yaw)  # 180° - psi
     with pytest.raises(ValueError, match="not parallel"):
-        broad.benchmark_initial_quat([0, 0, 1], [0, 0, 5])
+        broad_benchmark.benchmark_initial_quat([0, 0, 1], [0, 0, 5])
 
 
 def _smooth_inputs(n: int, fs: float, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -470,9 +470,9 @@ def test_mahony_equals_ahrs_mahony_from_the_same_initial_state():
     gyro, acc, mag = _smooth_inputs(n, fs, 13)
     q0 = Rotation.from_euler("ZYX", [-80.0, 5.0, -3.0], degrees=True).as_quat()
     ref = ahrs.filters.Mahony(gyr=gyro, acc=acc, mag=mag, frequency=fs, k_P=0.74, k_I=0.3,
-                              q0=broad.nwu_to_enu(q0)[[3, 0, 1, 2]]).Q   # ahrs: Q[t] from Q[t-1], sample t
-    ours = broad.mahony(gyro[1:], acc[1:], mag[1:], fs, k_P=0.74, k_I=0.3, q0=q0)
-    assert rot_angle(broad.nwu_to_enu(ours), ref[1:, [1, 2, 3, 0]]).max() < 1e-10
+                              q0=angles.nwu_to_enu(q0)[[3, 0, 1, 2]]).Q   # ahrs: Q[t] from Q[t-1], sample t
+    ours = broad_benchmark.reference_mahony(gyro[1:], acc[1:], mag[1:], fs, k_P=0.74, k_I=0.3, q0=q0)
+    assert rot_angle(angles.nwu_to_enu(ours), ref[1:, [1, 2, 3, 0]]).max() < 1e-10
 
 
 def test_madgwick_without_mag_equals_ahrs_madgwick_imu():
@@ -481,7 +481,7 @@ def test_madgwick_without_mag_equals_ahrs_madgwick_imu():
     gyro, acc, _ = _smooth_inputs(n, fs, 14)
     q0 = Rotation.from_euler("ZYX", [10.0, 20.0, -30.0], degrees=True).as_quat()
     ref = ahrs.filters.Madgwick(gyr=gyro, acc=acc, frequency=fs, gain=0.12, q0=q0[[3, 0, 1, 2]]).Q
-    ours = broad.madgwick(gyro[1:], acc[1:], None, fs, beta=0.12, q0=q0)
+    ours = broad_benchmark.reference_madgwick(gyro[1:], acc[1:], None, fs, beta=0.12, q0=q0)
     assert rot_angle(ours, ref[1:, [1, 2, 3, 0]]).max() < 1e-10
 
 
@@ -501,7 +501,7 @@ def test_madgwick_step_is_a_normalised_gradient_step_with_the_half_size_field(se
     q = Rotation.random(random_state=seed).as_quat()
     a, m = rng.normal(size=3) + [0, 0, 3], rng.normal(size=3) * 10 + [20, 0, -40]
     fs, beta = 50.0, 0.3
-    out = broad.madgwick(np.zeros((1, 3)), a[None], m[None], fs, beta=beta, q0=q)[0]
+    out = broad_benchmark.reference_madgwick(np.zeros((1, 3)), a[None], m[None], fs, beta=beta, q0=q)[0]
     an, mn = a / np.linalg.norm(a), m / np.linalg.norm(m)
     h = Rotation.from_quat(q).apply(mn)
 
@@ -527,20 +527,20 @@ def test_filters_converge_to_a_static_pose_in_nwu(name):
     rec = Recording("static", "test", fs, np.zeros((n, 3)), acc, mag, np.tile(truth.as_quat(), (n, 1)),
                     meta={"movement": np.r_[np.zeros(n - 500), np.ones(500)].astype(bool),
                           "gt_valid": np.ones(n, bool)})
-    q = broad.run_benchmark_filter(name, rec, q0=start)
+    q = broad_benchmark.run_benchmark_filter(name, rec, q0=start)
     # Madgwick's normalised gradient step keeps it chattering within ~beta/fs rad of the optimum
     assert rot_angle(q[-1:], truth.as_quat()[None])[0] < 0.2 * DEG
-    assert broad.evaluate(rec, q).total_rmse_deg < 0.2
+    assert broad_benchmark.evaluate(rec, q).total_rmse_deg < 0.2
 
 
 def test_run_benchmark_filter_errors():
     rec = Recording("x", "test", 100.0, np.zeros((5, 3)), np.tile([0, 0, 1.0], (5, 1)),
                     np.tile([1.0, 0, -1], (5, 1)), np.tile([0, 0, 0, 1.0], (5, 1)))
     with pytest.raises(ValueError, match="unknown benchmark filter 'vqf'"):
-        broad.run_benchmark_filter("vqf", rec)
+        broad_benchmark.run_benchmark_filter("vqf", rec)
     with pytest.raises(ValueError, match="without mag, pass the initial orientation q0"):
-        broad.run_benchmark_filter("madgwick", rec, use_mag=False)
-    assert broad.run_benchmark_filter("mahony", rec, use_mag=False, q0=[0, 0, 0, 1]).shape == (5, 4)
+        broad_benchmark.run_benchmark_filter("madgwick", rec, use_mag=False)
+    assert broad_benchmark.run_benchmark_filter("mahony", rec, use_mag=False, q0=[0, 0, 0, 1]).shape == (5, 4)
 
 
 # --- real data ---------------------------------------------------------------------------------
@@ -566,11 +566,11 @@ def test_real_trials_load_with_the_documented_conventions(broad_data_dir):
 @pytest.mark.realdata
 def test_published_group_figures_are_means_of_the_trial_figures(broad_data_dir, published_dir):
     index = broad.trial_index(broad_data_dir)
-    for name, params in broad.PUBLISHED_PARAMS.items():
-        pub = broad.published(name, published_dir)
+    for name, params in broad_benchmark.PUBLISHED_PARAMS.items():
+        pub = broad_benchmark.published(name, published_dir)
         assert pub.params == params and len(pub.trials) == 39
-        for metric in broad.METRICS:
-            means = broad.group_means(pub.trials, index, metric)
+        for metric in broad_benchmark.METRICS:
+            means = broad_benchmark.group_means(pub.trials, index, metric)
             assert set(means) == set(pub.groups)
             for g, (mean, _) in means.items():
                 assert mean == pytest.approx(pub.groups[g][metric], rel=1e-12)
@@ -587,12 +587,12 @@ def test_benchmark_filters_reproduce_the_published_figures(broad_data_dir, publi
     differences we know of are far larger: ahrs's full-size magnetic reference moves Madgwick's
     total RMSE by 0.7-44 % per trial, ahrs's initial state moves Mahony's by up to 8.4 %.
     """
-    pubs = {name: broad.published(name, published_dir) for name in broad.BENCHMARK_FILTERS}
+    pubs = {name: broad_benchmark.published(name, published_dir) for name in broad_benchmark.BENCHMARK_FILTERS}
     worst = 0.0
     for path in broad.find_trials(broad_data_dir):
         rec = broad.load_trial(path)
         for name, pub in pubs.items():
-            got = broad.evaluate(rec, broad.run_benchmark_filter(name, rec)).as_dict()
+            got = broad_benchmark.evaluate(rec, broad_benchmark.run_benchmark_filter(name, rec)).as_dict()
             for metric, value in got.items():
                 want = pub.trials[rec.name][metric]
                 rel = abs(value / want - 1.0)
@@ -606,11 +606,11 @@ def test_ahrs_mahony_reproduces_with_the_benchmark_initial_state(broad_data_dir,
     """What filters.mahony (ahrs, ENU) lacks to reproduce the benchmark: its initial quaternion."""
     ahrs = pytest.importorskip("ahrs")
     rec = broad.load_trial(broad.find_trials(broad_data_dir)[0])
-    want = broad.published("mahony", published_dir).trials[rec.name]["total_rmse_deg"]
-    q0 = broad.benchmark_initial_quat(rec.acc[0], rec.mag[0])
+    want = broad_benchmark.published("mahony", published_dir).trials[rec.name]["total_rmse_deg"]
+    q0 = broad_benchmark.benchmark_initial_quat(rec.acc[0], rec.mag[0])
     q = ahrs.filters.Mahony(gyr=rec.gyro, acc=rec.acc, mag=rec.mag, frequency=rec.fs, k_P=0.74, k_I=0.0012,
-                            q0=broad.nwu_to_enu(q0)[[3, 0, 1, 2]]).Q[:, [1, 2, 3, 0]]
-    assert broad.evaluate(rec, broad.enu_to_nwu(q)).total_rmse_deg == pytest.approx(want, rel=1e-3)
+                            q0=angles.nwu_to_enu(q0)[[3, 0, 1, 2]]).Q[:, [1, 2, 3, 0]]
+    assert broad_benchmark.evaluate(rec, angles.enu_to_nwu(q)).total_rmse_deg == pytest.approx(want, rel=1e-3)
 
 
 # --- the comparison script ----------------------------------------------------------------------

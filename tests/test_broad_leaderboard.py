@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 from scipy.spatial.transform import Rotation
 
-from danae_lite import broad, cli, datasets
+from danae_lite import broad, cli, datasets, registry
 from danae_lite.angles import quat_to_euler
 from danae_lite.baselines import make_method
 from danae_lite.leaderboard import TRIAL_COLUMNS, run_leaderboard
@@ -84,6 +84,11 @@ def test_causal_flags_follow_what_each_method_looks_at():
     assert DanaeOn("vqf", inputs="multi", arch="causal", window=64, loss_start=30).causal
     assert not DanaeOn("vqf", inputs="multi").causal  # the paper's window looks ahead
     assert not DanaeOn("butterworth", arch="causal", window=64, loss_start=30).causal  # its input already does
+    # the registry adds the denoiser's names; the baselines' own factory points to it
+    assert registry.make_method("danae-res[vqf]").causal and not registry.make_method("danae-res[butterworth]").causal
+    assert registry.make_method("vqf").causal
+    with pytest.raises(ValueError, match="registry"):
+        make_method("danae-res[vqf]")
 
 
 def test_reproduce_refuses_broad_and_names_the_leaderboard(capsys, monkeypatch):

@@ -103,6 +103,28 @@ def test_simulated(experiment: str, tmp_path: Path, capsys: pytest.CaptureFixtur
         assert kf_rows.loc[angle, "rmse"] == pytest.approx(m["kf"][angle]["rmse"], rel=1e-12)
 
 
+@pytest.mark.parametrize(("flags", "seeds"), [(["--fast"], [0]), (["--fast", "--seeds", "2", "5"], [2, 5])])
+def test_fast_mode_trains_one_seed_unless_told(flags: list[str], seeds: list[int], tmp_path: Path,
+                                               capsys: pytest.CaptureFixture[str]) -> None:
+    """README: fast mode trains one seed (0); --seeds still says which when given."""
+    argv = ["reproduce", "--out", str(tmp_path), "--max-steps", "5", "--threads", "1", "--device", "cpu", *flags]
+    code, out, err = run(argv, capsys)
+    assert code == 0, err
+    assert f"seeds {' '.join(map(str, seeds))} |" in out
+    assert json.loads((tmp_path / "metrics.json").read_text())["seeds"] == seeds
+
+
+def test_data_dir_flag_reaches_the_run_settings(tmp_oxiod, tmp_path: Path, capsys: pytest.CaptureFixture[str],
+                                                monkeypatch: pytest.MonkeyPatch) -> None:
+    """--data-dir is the settings' data directory, over $DANAE_DATA (which points elsewhere here)."""
+    (tmp_path / "empty").mkdir()
+    monkeypatch.setenv("DANAE_DATA", str(tmp_path / "empty"))
+    code, out, err = run(["reproduce", "--data-dir", str(tmp_oxiod.data_dir), "--out", str(tmp_path / "o"), *TINY],
+                         capsys)
+    assert code == 0, err
+    assert "data: real" in out
+
+
 def test_oxiod_files(tmp_oxiod, tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     syn = tmp_oxiod.syn
     out = tmp_path / "out"

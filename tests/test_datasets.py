@@ -27,11 +27,14 @@ def test_real_oxiod_split(tmp_oxiod, capsys):
     assert capsys.readouterr().out.strip() == exp.note
 
 
-def test_real_oxiod_from_environment(tmp_oxiod, monkeypatch, capsys):
+def test_real_oxiod_from_environment_through_the_settings(tmp_oxiod, monkeypatch, capsys):
+    """An entry point reads DANAE_DATA (config.data_dir) and passes the folder down."""
+    from danae_lite.config import data_dir
+
     monkeypatch.setenv("DANAE_DATA", str(tmp_oxiod.data_dir))
-    exp = load_experiment("oxiod", fast=False, verbose=False)
+    exp = load_experiment("oxiod", data_dir(), fast=False, verbose=False)
     assert exp.data == "real" and capsys.readouterr().out == ""
-    assert oxiod_root() == tmp_oxiod.root
+    assert oxiod_root(data_dir()) == tmp_oxiod.root
 
 
 def test_fast_mode_truncates_real_oxiod(tmp_oxiod, monkeypatch):
@@ -70,7 +73,16 @@ def test_ucs_folder_without_file_raises(tmp_path):
 
 def test_helpers_return_none_without_data(tmp_path):
     assert oxiod_root(tmp_path) is None and ucs_file(tmp_path) is None
-    assert oxiod_root() is None and ucs_file() is None  # DANAE_DATA unset
+    assert oxiod_root() is None and ucs_file() is None  # no data directory given
+
+
+def test_library_functions_never_read_the_environment(monkeypatch, tmp_oxiod):
+    """Settings are read by the entry points only: DANAE_DATA/DANAE_FAST do not reach the loaders."""
+    monkeypatch.setenv("DANAE_DATA", str(tmp_oxiod.data_dir))
+    monkeypatch.setenv("DANAE_FAST", "1")
+    exp = load_experiment("oxiod", verbose=False)
+    assert exp.data == "simulated" and len(exp.test[0]) == 18_000  # no directory given, full mode
+    assert oxiod_root() is None
 
 
 def test_simulated_oxiod_when_no_data(capsys):
@@ -84,7 +96,7 @@ def test_simulated_oxiod_when_no_data(capsys):
     assert all(len(r) == 6000 and r.fs == 100.0 for r in exp.train + exp.test)  # 60 s in fast mode
     reference = simulate("handheld", duration=60.0, seed=4)
     np.testing.assert_array_equal(exp.train[0].gyro, reference.gyro)
-    assert "DANAE_DATA unset" in exp.note and "handheld simulator stands in" in exp.note
+    assert "(no data directory given)" in exp.note and "handheld simulator stands in" in exp.note
     assert capsys.readouterr().out.strip() == exp.note
 
 

@@ -8,10 +8,11 @@ from danae_lite.angles import wrap
 from danae_lite.datasets import Experiment
 from danae_lite.denoiser import (GATE_GAINS, DanaeRes, DenoiserStream, filter_error, level_offsets,
                                  shift_levels)
+from danae_lite.features import multi_input, run_network, to_circle
 from danae_lite.leaderboard import run_leaderboard
 from danae_lite.simulate import simulate
 from danae_lite.train import TrainConfig
-from danae_lite.variants import multi_input, to_circle, validation_block
+from danae_lite.variants import validation_block
 
 
 def test_filter_error_wraps_yaw_only():
@@ -65,7 +66,7 @@ def _gate_rmse(m: DanaeRes, pairs) -> np.ndarray:
     sq, n = np.zeros((len(GATE_GAINS), 3)), 0
     for res, r, where in pairs:
         est = m.base.predict(r)[0]
-        corr = m._run_network(res, m.features(r, est))
+        corr = run_network(res, m.features(r, est))
         ok = where & m.ctx.clean[r.name]
         for i, g in enumerate(GATE_GAINS):
             d = r.euler - (est + g * corr)
@@ -206,7 +207,7 @@ def test_a_filter_without_yaw_is_corrected_on_roll_and_pitch_only():
     x = m.features(test, est)
     np.testing.assert_allclose(x[:, 2:4], np.tile([0.0, 1.0], (len(test), 1)))
     # roll and pitch: filter + gain x the network's correction, as for any filter
-    corr = m._run_network(m.results[0], x)
+    corr = run_network(m.results[0], x)
     np.testing.assert_allclose(out[:, :2], est[:, :2] + m.gains[0][:2] * corr[:, :2], atol=1e-12)
     w = board.wide("rmse", "clean")
     assert np.isnan(w.loc["danae-res[riann]", "yaw"]) and np.isfinite(w.loc["danae-res[riann]", "roll"])

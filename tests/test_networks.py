@@ -85,7 +85,7 @@ def _job(xs, ys, cfg):
     return networks.NetworkJob(tuple(xs), tuple(ys), None, cfg, "t", {})
 
 
-@pytest.mark.parametrize("module", ["model", "train", "windows"])
+@pytest.mark.parametrize("module", ["model", "gemm_conv", "train_types", "train", "windows", "seeding"])
 def test_cache_key_covers_the_code_that_makes_the_network(recs, tmp_path, monkeypatch, module):
     import importlib
 
@@ -103,14 +103,25 @@ def test_cache_key_covers_the_code_that_makes_the_network(recs, tmp_path, monkey
     assert networks.cache_key(other) == before
 
 
-def test_cache_key_covers_the_seeding_but_not_the_rest_of_config(recs, monkeypatch):
-    from danae_lite import config
+def test_cache_key_hashes_one_explicit_list_of_modules():
+    assert networks.NETWORK_CODE == tuple(f"danae_lite.{m}" for m in
+                                          ("model", "gemm_conv", "train_types", "train", "windows", "seeding"))
 
+
+@pytest.mark.parametrize(("module", "changes_key"), [("danae_lite.checkpoints", False), ("danae_lite.config", False),
+                                                     ("danae_lite.networks", False), ("danae_lite.train", True)])
+def test_cache_key_ignores_checkpoint_code_but_not_training_code(recs, monkeypatch, module, changes_key):
     job = _job([recs[0].euler[:, 0]], [recs[1].euler[:, 0]], TrainConfig(max_steps=5))
     before = networks.cache_key(job)
-    monkeypatch.setattr(config, "seeding_source", lambda: "def seed_everything(seed): pass\n")
-    assert networks.cache_key(job) != before
-    monkeypatch.undo()
+    read = networks._module_source
+    monkeypatch.setattr(networks, "_module_source", lambda name: read(name) + (b"\n# an edit\n" if name == module else b""))
+    assert (networks.cache_key(job) != before) is changes_key
+
+
+def test_cache_key_covers_the_settings_and_masks_but_not_the_device(recs):
+    job = _job([recs[0].euler[:, 0]], [recs[1].euler[:, 0]], TrainConfig(max_steps=5))
+    before = networks.cache_key(job)
+    assert networks.cache_key(_job(job.inputs, job.targets, TrainConfig(max_steps=6))) != before
     masked = networks.NetworkJob(job.inputs, job.targets, (np.ones(len(recs[0]), bool),), job.config, "t", {})
     assert networks.cache_key(masked) != before
 

@@ -1,9 +1,16 @@
 """The pipeline wires KF -> DANAE -> metrics; check its bookkeeping on small simulated data."""
+import json
+
 import numpy as np
 import pytest
 import torch
 
 from danae_lite import kalman, metrics, pipeline, simulate
+from danae_lite.angles import ANGLES
+from danae_lite.baselines import Danae, PaperKF
+from danae_lite.datasets import Experiment
+from danae_lite.leaderboard import run_leaderboard
+from danae_lite.recording import DataError
 from danae_lite.train import TrainConfig
 
 
@@ -41,10 +48,6 @@ def test_seed_study_tables(recs):
 
 def test_reproduce_metrics_match_an_independent_computation(recs, tmp_path):
     """reproduce(): the JSON numbers are metric_table on the joined test samples, DANAE a mean over seeds."""
-    import json
-
-    from danae_lite.datasets import Experiment
-
     test2 = simulate.simulate("handheld", duration=4.0, seed=7, name="sim-extra")
     exp = Experiment("oxiod", "simulated", recs[1:], [recs[0], test2], "tiny simulated data")
     cfg = TrainConfig(max_steps=5, num_threads=1)
@@ -100,9 +103,29 @@ def test_reproduce_metrics_match_an_independent_computation(recs, tmp_path):
     assert again.danae == rep.danae
 
 
+def test_reproduce_equals_the_leaderboards_paper_kf_and_danae(recs):
+    """Table 1 of reproduce() (KF and DANAE per seed, then over seeds, on all and on clean samples)
+    is, bit for bit, the leaderboard's paper_kf and danae configured as the paper (raw targets on
+    every sample, recordings as loaded), each path training its own networks."""
+    exp = Experiment("oxiod", "simulated", recs[1:], recs[:1], "tiny simulated data")
+    cfg = TrainConfig(max_steps=5, num_threads=1)
+    rep = pipeline.reproduce(exp, angles=ANGLES, seeds=(0, 1), config=cfg, progress=False, log=None)
+    board = run_leaderboard(exp, methods=(), extra=[PaperKF(), Danae(targets="raw", clean_targets=False)],
+                            seeds=(0, 1), train_config=cfg, progress=False, align=False)
+    for samples in ("all", "clean"):
+        kf, danae = rep.metrics_on(samples)
+        rows = board.table[board.table.samples == samples].set_index(["method", "angle"])
+        for a in ANGLES:
+            assert kf[a] == {m: rows.loc[("paper_kf", a), m] for m in metrics.METRICS}
+            assert danae[a] == {m: rows.loc[("danae", a), m] for m in (*metrics.METRICS, "rmse_std")}
+    for s, seed in enumerate((0, 1)):
+        for a in ANGLES:
+            np.testing.assert_array_equal(rep.study.predictions[(a, seed, "overlap")][recs[0].name],
+                                          board.predictions["danae"][recs[0].name][s][:, ANGLES.index(a)])
+    assert rep.leaderboard.clean.keys() == board.clean.keys()
+
+
 def test_reproduce_rejects_bad_arguments(recs):
-    from danae_lite.datasets import Experiment
-    from danae_lite.recording import DataError
 
     exp = Experiment("oxiod", "simulated", recs[1:], recs[:1], "")
     cfg = TrainConfig(max_steps=5, num_threads=1)

@@ -13,7 +13,8 @@ from danae_lite.model import (
     receptive_field,
 )
 from danae_lite.streaming import StreamingDanae, measure_latency, predict_causal
-from danae_lite.train import TrainConfig, TrainResult, load, load_result, save, train
+from danae_lite.checkpoints import load_result
+from danae_lite.train import TrainConfig, TrainResult, load, save, train
 
 NOISE = 0.05  # rad
 

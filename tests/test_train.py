@@ -6,9 +6,10 @@ import pytest
 import torch
 
 from conftest import assert_close_scaled
-from danae_lite.config import default_device
+from danae_lite.seeding import default_device
 from danae_lite.model import DanaeBig, DanaePaper
-from danae_lite.train import CheckpointError, TrainConfig, TrainResult, load, predict, save, train
+from danae_lite.checkpoints import CheckpointError
+from danae_lite.train import TrainConfig, TrainResult, load, predict, save, train
 
 NOISE = 0.05  # rad
 
@@ -54,6 +55,14 @@ def test_window_counts_respect_recordings(trained):
     assert trained.n_train_windows == sum(n - v - 19 for n, v in zip(lengths, n_val))
     assert trained.n_val_windows == sum(v - 19 for v in n_val)
     assert trained.device == "cpu" and trained.steps == 300 and trained.seconds > 0
+
+def test_validation_tail_is_the_held_out_block(trained):
+    from danae_lite.train import validation_tail
+
+    assert [validation_tail(n, 20, 0.1) for n in (1500, 100, 40)] == [150, 20, 20]
+    assert validation_tail(1500, 20, 0.0) == 0
+    tails = [validation_tail(n, 20, 0.1) for n in (1500, 1200, 1800)]
+    assert trained.n_val_windows == sum(t - 19 for t in tails)
 
 def test_predict_shapes_and_stitching(trained):
     x, _ = recording(613, 0.0, seed=5)

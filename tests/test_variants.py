@@ -6,10 +6,13 @@ import pytest
 
 from danae_lite import kalman
 from danae_lite.datasets import Experiment
+from danae_lite.features import MULTI_CHANNELS, from_circle, multi_input, to_circle
 from danae_lite.leaderboard import run_leaderboard
+from danae_lite.methods import total_error_rmse
 from danae_lite.simulate import simulate
+from danae_lite.streaming import predict_causal
 from danae_lite.train import TrainConfig
-from danae_lite.variants import MULTI_CHANNELS, DanaeOn, from_circle, multi_input, to_circle
+from danae_lite.variants import DanaeOn, Selected, validation_block
 
 
 def test_circle_round_trip_and_nan_yaw():
@@ -56,7 +59,6 @@ def test_causal_variant_never_reads_future_samples(board):
     m = board.methods["danae-multi-causal[vqf]"]
     rec = board.experiment.test[0]
     aligned = board.alignment.apply(rec)
-    from danae_lite.streaming import predict_causal
 
     x = m._features(aligned)
     res = m.results[0]
@@ -77,9 +79,6 @@ def test_duplicate_names_and_danae_source_are_rejected(board):
 
 
 def test_selected_variant_is_chosen_on_validation_blocks_only():
-    from danae_lite.baselines import total_error_rmse
-    from danae_lite.variants import Selected, validation_block
-
     recs = [simulate("handheld", duration=12.0, seed=s, name=f"sel-{s}") for s in range(3)]
     exp = Experiment("oxiod", "simulated", recs[1:], recs[:1], "selection")
     cfg = TrainConfig(max_steps=5, num_threads=1)
