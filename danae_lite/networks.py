@@ -19,6 +19,7 @@ DANAE; ``"joint"`` for a variant that predicts all angles at once), and returns 
 """
 from __future__ import annotations
 
+import ast
 import hashlib
 import importlib
 import os
@@ -68,12 +69,20 @@ class NetworkJob:
 
 
 def _module_source(name: str) -> bytes:
-    """The source file of module ``name``, as bytes."""
-    return Path(importlib.import_module(name).__file__ or "").read_bytes()
+    """The code of module ``name`` without its docstrings and comments (``ast.unparse``), as
+    bytes: editing the documentation, or moving the file, keeps the networks."""
+    tree = ast.parse(Path(importlib.import_module(name).__file__ or "").read_text(encoding="utf-8"))
+    for node in ast.walk(tree):  # a bare string statement (a docstring) does nothing
+        body = getattr(node, "body", None)
+        if isinstance(body, list):
+            kept = [st for st in body if not (isinstance(st, ast.Expr) and isinstance(st.value, ast.Constant)
+                                              and isinstance(st.value.value, str))]
+            node.body = kept or [ast.Pass()]
+    return ast.unparse(tree).encode()
 
 
 def cache_key(job: NetworkJob) -> str:
-    """16 hex digits of a SHA-256 over the source of :data:`NETWORK_CODE`, the settings
+    """16 hex digits of a SHA-256 over the code of :data:`NETWORK_CODE`, the settings
     (not the device or thread count, which change only float rounding) and the data."""
     h = hashlib.sha256()
     for name in NETWORK_CODE:

@@ -93,8 +93,11 @@ def test_cache_key_covers_the_code_that_makes_the_network(recs, tmp_path, monkey
     job = _job([recs[0].euler[:, 0]], [recs[1].euler[:, 0]], TrainConfig(max_steps=5))
     before = networks.cache_key(job)
     edited = tmp_path / f"{module}.py"
-    edited.write_bytes(pathlib.Path(mod.__file__).read_bytes() + b"\n# an edit\n")
+    source = pathlib.Path(mod.__file__).read_bytes()
     monkeypatch.setattr(mod, "__file__", str(edited))
+    edited.write_bytes(source + b"\n# a comment\n\n\n\"\"\"More documentation.\"\"\"\n")
+    assert networks.cache_key(job) == before  # comments, docstrings, blank lines: the same code
+    edited.write_bytes(source + b"\n_EDIT = 1\n")
     assert networks.cache_key(job) != before
     monkeypatch.undo()
     assert networks.cache_key(job) == before
@@ -114,7 +117,7 @@ def test_cache_key_ignores_checkpoint_code_but_not_training_code(recs, monkeypat
     job = _job([recs[0].euler[:, 0]], [recs[1].euler[:, 0]], TrainConfig(max_steps=5))
     before = networks.cache_key(job)
     read = networks._module_source
-    monkeypatch.setattr(networks, "_module_source", lambda name: read(name) + (b"\n# an edit\n" if name == module else b""))
+    monkeypatch.setattr(networks, "_module_source", lambda name: read(name) + (b"\n_EDIT = 1\n" if name == module else b""))
     assert (networks.cache_key(job) != before) is changes_key
 
 
