@@ -2,7 +2,8 @@
 #   make book    -> creates .venv if missing, renders the notebooks' committed outputs (executes nothing),
 #                   writes _build/html/index.html
 #   make test    -> unit tests plus every notebook under nbmake (fast mode), same venv; one torch
-#                   thread per pytest worker (OMP_NUM_THREADS=1): $(JOBS) workers share the cores
+#                   thread per pytest worker (OMP_NUM_THREADS=1): $(JOBS) workers share the cores,
+#                   each taking whole files, the chapters first (tests/conftest.py orders them)
 #   make execute -> re-executes every chapter in place, in full mode on real data, storing the outputs
 #                   that `make book` renders (python -m danae_lite.book; ARGS="--only 03_danae" for one),
 #                   with DANAE_JOBS (default: one worker process per core) parallel trainings and folds.
@@ -18,8 +19,9 @@ JOBS   ?= 2
 # worker processes for the chapters' independent trainings and folds (danae_lite.config.RunSettings)
 EXEC_JOBS ?= $(shell nproc 2>/dev/null || echo 1)
 ARGS   ?=
-# trained networks are shared between chapters through this cache (see danae_lite.config)
-export DANAE_CACHE ?= $(CURDIR)/_build/danae_cache
+# Trained networks are shared between chapters and runs through the user's cache folder
+# (~/.cache/danae_lite/full and /fast, capped; DANAE_CACHE=/path or off, DANAE_CACHE_GB: see
+# danae_lite.config). make execute ARGS=--cold trains every network in a new empty cache instead.
 
 .PHONY: book execute test unit lab bench clean
 
@@ -40,7 +42,7 @@ execute: $(STAMP)
 	DANAE_JOBS=$${DANAE_JOBS:-$(EXEC_JOBS)} $(BIN)/python -m danae_lite.book $(ARGS)
 
 test: $(STAMP)
-	DANAE_FAST=$${DANAE_FAST:-1} OMP_NUM_THREADS=$${OMP_NUM_THREADS:-1} $(BIN)/python -m pytest -n $(JOBS) tests notebooks --nbmake --nbmake-timeout=1200
+	DANAE_FAST=$${DANAE_FAST:-1} OMP_NUM_THREADS=$${OMP_NUM_THREADS:-1} $(BIN)/python -m pytest -n $(JOBS) --dist loadfile --no-loadscope-reorder tests notebooks --nbmake --nbmake-timeout=600
 
 unit: $(STAMP)
 	OMP_NUM_THREADS=$${OMP_NUM_THREADS:-1} $(BIN)/python -m pytest -n $(JOBS) tests

@@ -20,13 +20,15 @@ import platform
 import re
 import shutil
 import sys
+import tempfile
 import time
 from collections.abc import Mapping, MutableMapping, Sequence
 from datetime import datetime, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .config import CACHE_ENV, DATA_ENV, DEFAULT_SEED, FAST_ENV, JOBS_ENV, RunSettings, kernel_environment
+from .config import (CACHE_ENV, DATA_ENV, DEFAULT_CACHE_GB, DEFAULT_SEED, FAST_ENV, JOBS_ENV, RunSettings,
+                     kernel_environment)
 from .seeding import seed_everything
 
 if TYPE_CHECKING:
@@ -112,6 +114,41 @@ def execution_record(nb: Mapping[str, Any]) -> dict[str, Any] | None:
     """
     record = (nb.get("metadata") or {}).get("danae", {}).get("execution")
     return dict(record) if isinstance(record, Mapping) else None
+
+
+def stale_reason(nb: Mapping[str, Any], stem: str) -> str | None:
+    """Why a chapter's stored outputs cannot be trusted to match its code, or None when they can.
+
+    The book renders the stored outputs without executing anything, so they must come from a
+    full-mode, real-data run (:func:`execution_record`) of the code cells as they are now
+    (:func:`code_hash`), by this version of danae_lite. Markdown cells do not enter: editing
+    prose keeps a chapter fresh.
+    """
+    from ._version import __version__
+
+    rerun = (f"re-execute it with real data: DANAE_DATA=/path/to/data make execute "
+             f"(or: python -m danae_lite.book --only {stem})")
+    record = execution_record(nb)
+    if record is None:
+        return (f"{stem}: its stored outputs carry no execution record (metadata.danae.execution), so its "
+                f"code cells may have changed after they were produced; {rerun}")
+    problems = []
+    if record.get("code_sha256") != code_hash(nb):
+        problems.append("its code cells changed after its stored outputs were produced")
+    if record.get("danae_lite_version") != __version__:
+        problems.append(f"its outputs come from danae_lite {record.get('danae_lite_version')}, not {__version__}")
+    if record.get("data") != "real":
+        problems.append(f"its outputs come from {record.get('data')} data, not the real data")
+    if record.get("fast") is not False:
+        problems.append("its outputs come from a fast-mode run")
+    return f"{stem}: {'; '.join(problems)}; {rerun}" if problems else None
+
+
+def stale_chapters(paths: Sequence[Path]) -> list[Path]:
+    """The chapters among ``paths`` whose stored outputs are stale (:func:`stale_reason`), in order."""
+    import nbformat
+
+    return [p for p in paths if stale_reason(nbformat.read(p, as_version=4), p.stem) is not None]
 
 
 def stamp(nb: MutableMapping[str, Any], *, seconds: float, data_dir: str | os.PathLike[str] | None,
@@ -264,7 +301,7 @@ def _refusal(data_dir: Path | None, fast: bool) -> str | None:
 
 
 def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str | os.PathLike[str] | None,
-                 cache_dir: str | os.PathLike[str] | None, fast: bool, jobs: int = 1,
+                 cache_dir: str | os.PathLike[str] | None, fast: bool, jobs: int = 1, cache_gb: float = DEFAULT_CACHE_GB,
                  out_dir: str | os.PathLike[str] | None = None, timeout: float | None = 3600,
                  progress: bool = True) -> pd.DataFrame:
     """Execute chapters one after the other and write them with their outputs.
@@ -282,7 +319,9 @@ def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str |
         Real-data directory, given to the kernel as ``DANAE_DATA``; ``None`` removes
         ``DANAE_DATA`` from its environment, and the simulator stands in.
     cache_dir
-        Network cache, given as ``DANAE_CACHE``; ``None`` removes it (no cache).
+        Root of the network cache, given as ``DANAE_CACHE``; ``None`` gives ``off`` (no cache).
+    cache_gb
+        Size cap of each cache sub-folder [GB], given as ``DANAE_CACHE_GB``.
     fast
         Fast mode, given as ``DANAE_FAST`` (``"1"``/``"0"``).
     jobs
@@ -297,8 +336,9 @@ def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str |
     Returns
     -------
     pandas.DataFrame
-        One row per notebook: ``notebook`` (file name), ``seconds``, ``data`` (``"real"`` or
-        ``"simulated"``), ``fast`` and ``written`` (the path written).
+        One row per notebook: ``notebook`` (file name), ``seconds``, ``networks_trained`` and
+        ``networks_cached`` (files the chapter added to, and loaded from, the cache folder of its
+        mode), ``data`` (``"real"`` or ``"simulated"``), ``fast`` and ``written`` (the path written).
 
     Raises
     ------
@@ -323,7 +363,7 @@ def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str |
     cache = Path(cache_dir).expanduser().resolve() if cache_dir is not None else None
     if cache is not None:
         cache.mkdir(parents=True, exist_ok=True)
-    env = kernel_environment(data_dir=data, cache=cache, fast=fast, n_jobs=jobs)
+    env = kernel_environment(data_dir=data, cache=cache, fast=fast, n_jobs=jobs, max_gb=cache_gb)
     env.update({"MPLBACKEND": INLINE_BACKEND, "PYTHONHASHSEED": "0"})
 
     if out is not None and not in_place:
@@ -331,20 +371,49 @@ def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str |
         if progress:
             print(f"writing executed copies to {out}; the notebooks in place are left unchanged")
     rows: list[dict[str, Any]] = []
+    networks = cache / ("fast" if fast else "full") if cache is not None else None
     bar = tqdm(paths, desc="chapters", unit="nb", disable=not progress, leave=False)
     for path in bar:
         bar.set_postfix_str(path.stem)
         target = out / path.name if out is not None else path
+        before = _network_files(networks)
+        start = time.time()
         seconds = execute_notebook(path, out_path=target, env=env, data_dir=data, fast=fast, timeout=timeout)
-        rows.append({"notebook": path.name, "seconds": round(seconds, 1),
-                     "data": "real" if data else "simulated", "fast": fast, "written": str(target)})
+        trained, cached = _network_counts(before, _network_files(networks), start)
+        rows.append({"notebook": path.name, "seconds": round(seconds, 1), "networks_trained": trained,
+                     "networks_cached": cached, "data": "real" if data else "simulated", "fast": fast,
+                     "written": str(target)})
         if progress:
-            bar.write(f"{path.stem}: {seconds:.1f} s -> {target}")
+            bar.write(f"{path.stem}: {seconds:.1f} s, {trained} network(s) trained, {cached} found in the "
+                      f"cache -> {target}")
     bar.close()
-    table = pd.DataFrame(rows, columns=["notebook", "seconds", "data", "fast", "written"])
+    table = pd.DataFrame(rows, columns=["notebook", "seconds", "networks_trained", "networks_cached", "data",
+                                        "fast", "written"])
     if progress and rows:
         print(f"{len(rows)} notebook(s) executed in {table['seconds'].sum():.1f} s")
     return table
+
+
+def _network_files(folder: Path | None) -> dict[str, float]:
+    """File name -> modification time [s since the epoch] of the networks in a cache folder."""
+    if folder is None or not folder.is_dir():
+        return {}
+    found = {}
+    for f in folder.glob("*.pt"):
+        try:
+            found[f.name] = f.stat().st_mtime
+        except FileNotFoundError:  # removed meanwhile by the size cap
+            continue
+    return found
+
+
+def _network_counts(before: Mapping[str, float], after: Mapping[str, float], start: float) -> tuple[int, int]:
+    """(networks trained, networks found in the cache) by a run that started at ``start``: the
+    files it added, and the older files it loaded (loading marks a file used, see
+    :class:`~danae_lite.networks.NetworkCache`)."""
+    trained = sum(1 for name in after if name not in before)
+    cached = sum(1 for name, mtime in after.items() if name in before and mtime >= start)
+    return trained, cached
 
 
 def find_root(start: str | os.PathLike[str] | None = None) -> Path:
@@ -378,10 +447,25 @@ safety rule:
   executed copies. A chapter whose cell fails is left untouched.
 
 examples:
-  DANAE_DATA=/path/to/data python -m danae_lite.book                 # every chapter, in place
+  DANAE_DATA=/path/to/data python -m danae_lite.book                 # the stale chapters, in place
+  DANAE_DATA=/path/to/data python -m danae_lite.book --all --cold    # every chapter, every network trained
   python -m danae_lite.book --data-dir /path/to/data --only 03_danae  # one chapter, in place
   python -m danae_lite.book --fast --out _build/fast_notebooks        # simulator, fast, copies
 """
+
+
+def _stale_or_say_so(paths: Sequence[Path]) -> list[Path]:
+    """The stale chapters among ``paths``; prints which chapters are fresh and left as they are."""
+    missing = [str(p) for p in paths if not p.is_file()]
+    if missing:
+        raise BookExecutionError(f"no such notebook: {', '.join(missing)}")
+    stale = stale_chapters(paths)
+    fresh = [p.stem for p in paths if p not in stale]
+    if fresh:
+        print(f"up to date, left as they are: {', '.join(fresh)} (--all re-executes them too)")
+    if not stale:
+        print("every chapter's stored outputs match its code: nothing to re-execute")
+    return stale
 
 
 def main(argv: Sequence[str] | None = None) -> int:
@@ -409,15 +493,20 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--data-dir", metavar="DIR", default=None,
                         help=f"folder holding the real data (oxiod/, ucs/); default ${DATA_ENV}")
     parser.add_argument("--cache", metavar="DIR", default=None,
-                        help=f"network cache shared by the chapters; default ${CACHE_ENV} or "
-                             "_build/danae_cache in the repository")
+                        help=f"root of the network cache shared by the chapters and later runs ('off': none); "
+                             f"default ${CACHE_ENV}, else the user's cache folder (~/.cache/danae_lite)")
+    parser.add_argument("--cold", action="store_true",
+                        help="run cold: train every network, in a new empty cache that the chapters of this "
+                             "run share and that is removed afterwards (the user's cache is left as it is)")
     parser.add_argument("--fast", action=argparse.BooleanOptionalAction, default=None,
                         help=f"fast mode (fewer epochs, shorter recordings); default ${FAST_ENV}")
     parser.add_argument("--out", metavar="DIR", default=None,
                         help="write executed copies to DIR instead of rewriting the notebooks in place")
     parser.add_argument("--only", metavar="CHAPTER", action="append", default=None,
-                        help="run only this chapter, e.g. 03_danae (repeatable); default every chapter "
-                             "of _toc.yml")
+                        help="run this chapter, e.g. 03_danae, stale or not (repeatable); default: in place, "
+                             "the chapters of _toc.yml whose stored outputs are stale; with --out, every chapter")
+    parser.add_argument("--all", action="store_true",
+                        help="re-execute every chapter of _toc.yml, stale or not")
     parser.add_argument("--notebooks-dir", metavar="DIR", default=None,
                         help="folder of the chapters; default notebooks/ in the repository root "
                              "(the folder holding _toc.yml, from the current directory upward)")
@@ -441,10 +530,17 @@ def main(argv: Sequence[str] | None = None) -> int:
                 raise BookExecutionError(f"unknown chapter {', '.join(unknown)} for --only: "
                                          f"expected one of {', '.join(chapters)}")
             chapters = [c for c in chapters if c in wanted]
+        paths = [folder / f"{c}.ipynb" for c in chapters]
+        if not (args.only or args.all or args.out):
+            paths = _stale_or_say_so(paths)
+            if not paths:
+                return 0
         settings = RunSettings.from_env(fast=args.fast, data=args.data_dir, cache=args.cache, n_jobs=args.jobs)
-        cache = settings.cache or root / "_build" / "danae_cache"
-        execute_book([folder / f"{c}.ipynb" for c in chapters], data_dir=settings.data_dir, cache_dir=cache,
-                     fast=settings.fast, jobs=settings.jobs, out_dir=args.out, timeout=args.timeout if args.timeout > 0 else None)
+        with tempfile.TemporaryDirectory(prefix="danae_cold_cache_") as cold:
+            execute_book(paths, data_dir=settings.data_dir,
+                         cache_dir=Path(cold) if args.cold else settings.cache_root, cache_gb=settings.cache_gb,
+                         fast=settings.fast, jobs=settings.jobs, out_dir=args.out,
+                         timeout=args.timeout if args.timeout > 0 else None)
     except (BookExecutionError, FileNotFoundError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

@@ -50,8 +50,10 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .config import CACHE_ENV, DATA_ENV, FAST_ENV, FAST_EPOCHS, FAST_MAX_STEPS, FAST_SEEDS, FULL_SEEDS, JOBS_ENV
-from .datasets import (BROAD_TEST_GROUP, BROAD_TRAIN_GROUP, FAST_BROAD_SAMPLES, FAST_DURATION, FAST_SAMPLES,
+from .config import (CACHE_ENV, CACHE_GB_ENV, DATA_ENV, DEFAULT_CACHE_GB, FAST_ENV, FAST_EPOCHS, FAST_MAX_STEPS, FAST_SEEDS,
+                     FULL_SEEDS, JOBS_ENV)
+from .datasets import (BROAD_TEST_GROUP, BROAD_TRAIN_GROUP, FAST_BROAD_SAMPLES, FAST_BROAD_TRIALS, FAST_DURATION,
+                       FAST_MOTION_RECORDINGS, FAST_SAMPLES,
                        OXIOD_TEST, OXIOD_TRAIN, PAPER_SPLIT_FOLDER, PAPER_SPLIT_TEST, PAPER_SPLIT_TRAIN,
                        TRAIN_FRACTION)
 
@@ -137,14 +139,17 @@ data selection:
            left out takes its default trials from the data directory.
 
 fast mode (--fast or {FAST_ENV}=1):
-  OxIOD recordings are cut to their first {FAST_SAMPLES} samples, BROAD trials to {FAST_BROAD_SAMPLES}, simulated ones to {FAST_DURATION["handheld"]:g} s (handheld)
-  or {FAST_DURATION["underwater"]:g} s (underwater); the default epochs are capped at {FAST_EPOCHS} and each network at
-  {FAST_MAX_STEPS} optimiser steps (--max-steps overrides).
+  OxIOD recordings are cut to their first {FAST_SAMPLES} samples (at most {FAST_MOTION_RECORDINGS} per motion with --folds);
+  BROAD trials to their first {FAST_BROAD_SAMPLES} samples (by default the first {FAST_BROAD_TRIALS} of each group);
+  simulated ones to {FAST_DURATION["handheld"]:g} s (handheld) or {FAST_DURATION["underwater"]:g} s (underwater).
+  The default epochs are capped at {FAST_EPOCHS} and each network at {FAST_MAX_STEPS} optimiser steps (--max-steps overrides).
 
 environment:
   {DATA_ENV}   data directory used when --data-dir is not given
   {FAST_ENV}   1/true/yes/on switches fast mode on (same as --fast)
-  {CACHE_ENV}  trained-network cache folder used when --cache is not given (unset: no cache)
+  {CACHE_ENV}  root of the trained-network cache when --cache is not given (unset: ~/.cache/danae_lite;
+               off: no cache); networks go to its full/ or fast/ sub-folder
+  {CACHE_GB_ENV}  size cap of each of those sub-folders in GB (default {DEFAULT_CACHE_GB:g}; least recently used removed first)
   {JOBS_ENV}   worker processes used when --jobs is not given (default 1)
 
 example:
@@ -254,8 +259,9 @@ def _add_common(p: argparse.ArgumentParser, command: str) -> None:
                           f"each with cores/N torch threads; the results do not depend on it. Default: ${JOBS_ENV}, "
                           "else 1")
     p.add_argument("--cache", metavar="DIR", default=None,
-                     help=f"keep trained networks in DIR and reuse them when the data, settings and code are the "
-                          f"same. Default: ${CACHE_ENV}; without either nothing is cached")
+                     help=f"keep trained networks under DIR (its full/ or fast/ sub-folder) and reuse them when "
+                          f"the data, settings and code are the same; 'off': cache nothing. Default: ${CACHE_ENV}, "
+                          "else the user's cache folder (~/.cache/danae_lite)")
     p.add_argument("--out", metavar="DIR", default=None,
                      help="output folder (created if needed; files in it are overwritten). "
                           f"Default: runs/{command}-<experiment>")

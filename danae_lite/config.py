@@ -8,9 +8,16 @@ takes its settings as arguments and never reads the environment.
     ``1``/``true``/``yes`` switches every notebook and the CLI to a reduced run (fewer epochs,
     shorter recordings) so that the whole notebook suite runs in minutes. Default: off.
 ``DANAE_CACHE``
-    Directory where trained networks are kept between chapters (keyed by a hash of their
-    data and settings), so a later chapter reuses a network an earlier one trained. Unset:
-    no cache. ``make execute`` and ``make test`` set it to ``_build/danae_cache``.
+    Folder where trained networks are kept between chapters and runs (keyed by a hash of their
+    data, settings and training code), so a later chapter, or a later run, reuses a network
+    an earlier one trained. Unset: the user's cache folder (``~/.cache/danae_lite`` on Linux,
+    from :func:`platformdirs.user_cache_dir`, as pip and torch keep theirs), so it survives a
+    fresh clone. ``off`` (or ``none``): nothing is cached. Full-mode and fast-mode networks
+    go to its sub-folders ``full/`` and ``fast/``, capped separately, so that fast runs
+    never push out full-mode networks.
+``DANAE_CACHE_GB``
+    Size cap of each of those sub-folders [GB] (default :data:`DEFAULT_CACHE_GB`): storing a
+    network past it removes the least recently used networks first.
 ``DANAE_JOBS``
     Worker processes for independent trainings and folds (the book's setting; the command
     line has ``--jobs``). Default 1.
@@ -29,6 +36,7 @@ from pathlib import Path
 from typing import Any
 
 from .datasets import existing_dir
+from .networks import NetworkCache
 from .seeding import default_device
 from .train import TrainConfig
 
@@ -36,6 +44,10 @@ from .train import TrainConfig
 FAST_ENV = "DANAE_FAST"
 DATA_ENV = "DANAE_DATA"
 CACHE_ENV = "DANAE_CACHE"
+CACHE_GB_ENV = "DANAE_CACHE_GB"
+DEFAULT_CACHE_GB = 4.0
+"""Default cap of each cache sub-folder (``full/``, ``fast/``) [GB]; a full-mode run of the
+whole book stores about 1 GB of networks."""
 JOBS_ENV = "DANAE_JOBS"
 DEFAULT_SEED = 0
 
@@ -76,15 +88,49 @@ def data_dir(path: str | os.PathLike[str] | None = None) -> Path | None:
     return p
 
 
-def cache_dir(path: str | os.PathLike[str] | None = None) -> Path | None:
-    """Directory for cached trained networks: ``path`` if given, else ``DANAE_CACHE``, else None.
+_OFF = {"off", "none"}
 
-    The directory is created when the first network is stored in it.
+
+def default_cache_root() -> Path:
+    """The user's cache folder for this package (``~/.cache/danae_lite`` on Linux, or
+    ``$XDG_CACHE_HOME/danae_lite``), the convention pip and torch follow."""
+    import platformdirs
+
+    return Path(platformdirs.user_cache_dir("danae_lite", appauthor=False))
+
+
+def cache_dir(path: str | os.PathLike[str] | None = None) -> Path | None:
+    """Root folder of the network cache: ``path`` if given, else ``DANAE_CACHE``, else
+    :func:`default_cache_root`; None when the value is ``off`` or ``none`` (no cache).
+
+    The folder is created when the first network is stored in it.
     """
-    raw = str(path) if path is not None else os.environ.get(CACHE_ENV, "").strip()
-    if not raw:
+    raw = str(path).strip() if path is not None else os.environ.get(CACHE_ENV, "").strip()
+    if raw.lower() in _OFF:
         return None
-    return Path(raw).expanduser().resolve()
+    return Path(raw).expanduser().resolve() if raw else default_cache_root().resolve()
+
+
+def cache_gb(value: float | None = None) -> float:
+    """Size cap of each cache sub-folder [GB]: ``value`` if given, else ``DANAE_CACHE_GB``, else
+    :data:`DEFAULT_CACHE_GB`. Raises ``ValueError`` for a value that is not a positive number."""
+    raw = str(value) if value is not None else os.environ.get(CACHE_GB_ENV, "").strip() or str(DEFAULT_CACHE_GB)
+    try:
+        gb = float(raw)
+    except ValueError:
+        gb = 0.0
+    if not gb > 0 or gb == float("inf"):
+        origin = "cache_gb" if value is not None else f"${CACHE_GB_ENV}"
+        raise ValueError(f"{origin}={raw!r}: expected a positive size in GB")
+    return gb
+
+
+def network_cache(root: Path | None, *, fast: bool, max_gb: float = DEFAULT_CACHE_GB) -> NetworkCache | None:
+    """The cache of one mode: ``<root>/fast`` or ``<root>/full``, capped at ``max_gb`` GB; None
+    without a root."""
+    if root is None:
+        return None
+    return NetworkCache(root / ("fast" if fast else "full"), int(max_gb * 1e9))
 
 
 def jobs(value: int | None = None) -> int:
@@ -102,23 +148,22 @@ def jobs(value: int | None = None) -> int:
 
 
 def kernel_environment(*, data_dir: Path | None, cache: Path | None, fast: bool, n_jobs: int,
-                       base: Mapping[str, str] | None = None) -> dict[str, str]:
+                       max_gb: float = DEFAULT_CACHE_GB, base: Mapping[str, str] | None = None) -> dict[str, str]:
     """The environment of a child process (a chapter's kernel) that is to run with these settings.
 
     ``base`` (default: this process's environment) without any ``DANAE_*`` variable, plus ``DANAE_FAST``,
-    ``DANAE_JOBS`` and, when set, ``DANAE_DATA`` and ``DANAE_CACHE``: what the child's
-    :meth:`RunSettings.from_env` reads back.
+    ``DANAE_JOBS``, ``DANAE_CACHE`` (the cache root, or ``off`` for None), ``DANAE_CACHE_GB`` and,
+    when set, ``DANAE_DATA``: what the child's :meth:`RunSettings.from_env` reads back.
     """
     env = {k: v for k, v in (os.environ if base is None else base).items() if not k.startswith("DANAE_")}
-    env.update({FAST_ENV: "1" if fast else "0", JOBS_ENV: str(n_jobs)})
+    env.update({FAST_ENV: "1" if fast else "0", JOBS_ENV: str(n_jobs), CACHE_ENV: str(cache) if cache else "off",
+                CACHE_GB_ENV: repr(float(max_gb))})
     if data_dir is not None:
         env[DATA_ENV] = str(data_dir)
-    if cache is not None:
-        env[CACHE_ENV] = str(cache)
     return env
 
 
-FAST_MAX_STEPS = 300
+FAST_MAX_STEPS = 100
 """Fast mode: cap on optimiser steps per network."""
 FAST_EPOCHS = 2
 """Fast mode: cap on the epochs per network."""
@@ -146,12 +191,20 @@ class RunSettings:
     """Seed given to python, numpy and torch at the start."""
     seeds: tuple[int, ...] = field(default=FULL_SEEDS)
     """Training seeds of the networks (one network per angle/head and seed)."""
-    cache: Path | None = None
-    """Trained-network cache folder, or None for no cache."""
+    cache_root: Path | None = None
+    """Root of the network cache (holding ``full/`` and ``fast/``), or None for no cache."""
+    cache_gb: float = DEFAULT_CACHE_GB
+    """Size cap of each cache sub-folder [GB]."""
     jobs: int = 1
     """Worker processes for independent trainings and folds."""
     device: str = "cpu"
     """Torch device of the trainings."""
+
+    @property
+    def cache(self) -> NetworkCache | None:
+        """This mode's network cache (``<cache_root>/full`` or ``/fast``, capped at ``cache_gb``),
+        what the library calls take as ``cache=``; None for no cache."""
+        return network_cache(self.cache_root, fast=self.fast, max_gb=self.cache_gb)
 
     @classmethod
     def from_env(cls, *, fast: bool | None = None, data: str | os.PathLike[str] | None = None,
@@ -159,12 +212,13 @@ class RunSettings:
                  seeds: tuple[int, ...] | None = None, seed: int = DEFAULT_SEED,
                  device: str | None = None) -> "RunSettings":
         """Settings from explicit values, falling back to ``DANAE_FAST``, ``DANAE_DATA``,
-        ``DANAE_CACHE`` and ``DANAE_JOBS``: what an entry point calls once."""
+        ``DANAE_CACHE``, ``DANAE_CACHE_GB`` and ``DANAE_JOBS``: what an entry point calls once."""
         is_fast = fast_mode(fast)
         default_seeds = FAST_SEEDS if is_fast else FULL_SEEDS
         return cls(fast=is_fast, data_dir=data_dir(data), seed=seed,
                    seeds=tuple(int(s) for s in (seeds if seeds is not None else default_seeds)),
-                   cache=cache_dir(cache), jobs=jobs(n_jobs), device=default_device(device))
+                   cache_root=cache_dir(cache), cache_gb=cache_gb(), jobs=jobs(n_jobs),
+                   device=default_device(device))
 
     def pick(self, full: Any, fast: Any) -> Any:
         """``fast`` in fast mode, else ``full`` (e.g. ``cfg.pick(full=20, fast=2)`` epochs)."""

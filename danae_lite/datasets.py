@@ -17,11 +17,15 @@ stands in (:func:`danae_lite.simulate.simulate`), with the same split shape: fou
 ``"underwater"`` recording split 80/20. A folder that exists but lacks the expected files raises DataError: whoever put it
 there meant real data.
 
-Fast mode (the ``fast`` argument) keeps the first :data:`FAST_SAMPLES` samples of
-each real OxIOD recording, keeps the real UCS recording whole (it is only ~20k samples at
-10 Hz), and simulates :data:`FAST_DURATION` seconds per recording instead of the scenario
-default (180 s handheld, 1950 s underwater), and keeps the first :data:`FAST_BROAD_SAMPLES`
-samples of each BROAD trial (60 s; every trial moves within them).
+Fast mode (the ``fast`` argument) runs every step on little data, so that a chapter runs in
+a minute or two (``make test``) with the same code path as in full mode: it keeps the first
+:data:`FAST_SAMPLES` samples of each real OxIOD recording and at most
+:data:`FAST_MOTION_RECORDINGS` recordings per motion (fewer cross-validation folds; still two
+training recordings per fold, as in full mode), keeps the real UCS recording whole (it is only
+~20k samples at 10 Hz), simulates :data:`FAST_DURATION` seconds per recording instead of the
+scenario default (180 s handheld, 1950 s underwater), and keeps the first
+:data:`FAST_BROAD_TRIALS` trials of each BROAD group (train, test), cut to their first
+:data:`FAST_BROAD_SAMPLES` samples (60 s; every trial moves within them).
 """
 from __future__ import annotations
 
@@ -48,12 +52,18 @@ UCS_RELPATH = Path("full_dataset") / "imu_adis.txt"
 """Location of the ADIS file inside ``<data dir>/ucs``."""
 TRAIN_FRACTION = 0.8
 """Share of the UCS recording used for training (the first part)."""
-FAST_SAMPLES = 6000
-"""Samples kept per real OxIOD recording in fast mode (60 s at 100 Hz)."""
-FAST_DURATION = {"handheld": 60.0, "underwater": 600.0}
+FAST_SAMPLES = 2000
+"""Samples kept per real OxIOD recording in fast mode (20 s at 100 Hz)."""
+FAST_MOTION_RECORDINGS = 3
+"""Recordings kept per OxIOD motion in fast mode (:func:`load_motions`): leave-one-out folds
+then still train on two recordings, as the methods that hold out training recordings need."""
+FAST_DURATION = {"handheld": 20.0, "underwater": 300.0}
 """Simulated duration per recording in fast mode [s]."""
 FAST_BROAD_SAMPLES = 17143
-"""Samples kept per BROAD trial in fast mode (60 s at 285.7 Hz)."""
+"""Samples kept per BROAD trial in fast mode (60 s at 285.7 Hz; every trial moves within them,
+after resting 27 to 48 s, long enough for the filters' heading to settle)."""
+FAST_BROAD_TRIALS = 2
+"""BROAD trials kept per group (the training group, the test group) in fast mode."""
 BROAD_TRAIN_GROUP = "undisturbed"
 """BROAD trials used for fitting (group of ``trials.json``)."""
 BROAD_TEST_GROUP = "disturbed"
@@ -157,13 +167,15 @@ def _real_ucs(path: Path) -> Experiment:
 
 
 def _real_broad(root: Path, fast: bool) -> Experiment:
-    recs = fast_cut(broad.load_trials(root), fast, FAST_BROAD_SAMPLES)  # DataError when the folder holds no trials
-    train = [r for r in recs if BROAD_TRAIN_GROUP in r.meta["groups"]]
-    test = [r for r in recs if BROAD_TEST_GROUP in r.meta["groups"]]
+    recs = broad.load_trials(root)  # DataError when the folder holds no trials
+    keep = FAST_BROAD_TRIALS if fast else None
+    train = fast_cut([r for r in recs if BROAD_TRAIN_GROUP in r.meta["groups"]][:keep], fast, FAST_BROAD_SAMPLES)
+    test = fast_cut([r for r in recs if BROAD_TEST_GROUP in r.meta["groups"]][:keep], fast, FAST_BROAD_SAMPLES)
     if not train or not test:
         raise DataError(f"{root}: found {len(train)} trial(s) of the group {BROAD_TRAIN_GROUP!r} and {len(test)} of "
                         f"{BROAD_TEST_GROUP!r} (from trials.json); both are needed for the default split")
-    cut = fast_note(fast, FAST_BROAD_SAMPLES)
+    cut = (f" (fast mode: the first {FAST_BROAD_TRIALS} trials of each group, first {FAST_BROAD_SAMPLES} samples "
+           "each)") if fast else ""
     note = (f"Real BROAD from {root}: train the {len(train)} {BROAD_TRAIN_GROUP} trials, test the {len(test)} "
             f"{BROAD_TEST_GROUP} trials{cut}. BROAD: Laidig, Caruso, Cereatti, Seel, Data 6(7), 2021 (CC BY 4.0).")
     return Experiment("broad", "real", train, test, note, aligned=True)
@@ -269,7 +281,8 @@ class Motions:
 def load_motions(data_dir: str | os.PathLike[str] | None = None, *, fast: bool = False, seed: int = 0,
                  verbose: bool = True) -> Motions:
     """The OxIOD motions of :data:`OXIOD_MOTIONS` found under ``<data dir>/oxiod`` (fast mode: the
-    first :data:`FAST_SAMPLES` samples of each), or simulated stand-ins when there is no
+    first :data:`FAST_MOTION_RECORDINGS` of each motion, cut to their first :data:`FAST_SAMPLES`
+    samples), or simulated stand-ins when there is no
     ``oxiod/`` folder: the handheld simulator with other seeds for each motion (seeds
     ``seed + 10 m + i``), so that the protocol runs, though the simulator has one motion only.
 
@@ -279,13 +292,15 @@ def load_motions(data_dir: str | os.PathLike[str] | None = None, *, fast: bool =
     base = existing_dir(data_dir)
     root = oxiod_root(base) if base is not None else None
     out: dict[str, list[Recording]] = {}
+    keep = FAST_MOTION_RECORDINGS if fast else None
     if root is None:
         from .simulate import simulate
 
         duration = FAST_DURATION["handheld"] if fast else None
         for m, (motion, (_, _, ks)) in enumerate(OXIOD_MOTIONS.items()):
             out[motion] = [simulate("handheld", duration=duration, seed=seed + 10 * m + i,
-                                    name=f"sim-{motion.replace(' ', '-')}-{i}") for i in range(len(ks))]
+                                    name=f"sim-{motion.replace(' ', '-')}-{i}")
+                           for i in range(len(ks[:keep]))]
         note = (f"No real OxIOD data found {_where(base)}: the handheld simulator stands in for every motion "
                 "(other seeds per motion; the simulator has a single motion).")
         result = Motions("simulated", out, note)
@@ -296,13 +311,15 @@ def load_motions(data_dir: str | os.PathLike[str] | None = None, *, fast: bool =
                 if motion == "handheld":
                     raise DataError(f"{root} lacks {root / setting}; the handheld recordings are needed")
                 continue
+            ks = ks[:keep]
             needed = [syn / f"{p}{k}.csv" for k in ks for p in ("imu", "vi")]
             missing = [str(x) for x in needed if not x.is_file()]
             if missing:
                 raise DataError(f"{root / setting} exists but lacks {', '.join(missing)}; expected the original "
                                 f"OxIOD layout <oxiod>/{setting}/{folder}/syn/imuK.csv + viK.csv")
             out[motion] = load_oxiod_files([syn / f"imu{k}.csv" for k in ks], fast)
-        cut = fast_note(fast, FAST_SAMPLES)
+        cut = (f" (fast mode: at most {FAST_MOTION_RECORDINGS} recordings per motion, first {FAST_SAMPLES} "
+               "samples each)") if fast else ""
         note = ("Real OxIOD from " + str(root) + ": " + "; ".join(f"{m} {len(v)} recordings" for m, v in out.items())
                 + cut + ".")
         result = Motions("real", out, note)

@@ -482,12 +482,48 @@ def _block_gains(
     return ks, ps, False
 
 
+def _block_gains_cached(block: tuple[float, ...], dt: float, n_max: int
+                        ) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]:
+    """:func:`_block_gains` of ``block`` = (p00, p01, p11, q00, q01, q11, r) as read-only arrays
+    (K: (m, 2), P: (m, 3)), remembered for the last :data:`_BLOCK_CACHE_SIZE` blocks.
+
+    A tuning grid repeats blocks: the roll and pitch blocks of every setting share their
+    (angle, bias) variances, and every fold of a cross-validation runs the same grid. A
+    remembered run serves any ``n_max`` it answers exactly: a run that converged within
+    ``n_max`` steps, or the first ``n_max`` steps of a longer one (not converged within them).
+    """
+    key = (*block, float(dt))
+    hit = _BLOCK_CACHE.get(key)
+    if hit is not None:
+        K, P, converged = hit
+        if converged and len(K) <= n_max:
+            _BLOCK_CACHE.move_to_end(key)
+            return hit
+        if len(K) >= n_max:
+            _BLOCK_CACHE.move_to_end(key)
+            return K[:n_max], P[:n_max], False
+    ks, ps, converged = _block_gains(*block, dt, n_max)
+    K, P = np.asarray(ks), np.asarray(ps)
+    K.setflags(write=False)
+    P.setflags(write=False)
+    _BLOCK_CACHE[key] = (K, P, converged)
+    while len(_BLOCK_CACHE) > _BLOCK_CACHE_SIZE:
+        _BLOCK_CACHE.popitem(last=False)
+    return K, P, converged
+
+
+_BLOCK_CACHE: "OrderedDict[tuple[float, ...], tuple[NDArray[np.float64], NDArray[np.float64], bool]]" = OrderedDict()
+_BLOCK_CACHE_SIZE = 128
+"""Blocks remembered by :func:`_block_gains_cached` (each at most 40 bytes per step)."""
+
+
 def _block_gain_sequence(
     dt: float, P0: NDArray[np.float64], Q: NDArray[np.float64], R: NDArray[np.float64], n_max: int
 ) -> GainSequence:
     """The three decoupled blocks, each iterated until it converges, then padded."""
     per_block = [
-        _block_gains(*map(float, (P0[a, a], P0[a, b], P0[b, b], Q[a, a], Q[a, b], Q[b, b], R[j, j])), dt, n_max)
+        _block_gains_cached(tuple(map(float, (P0[a, a], P0[a, b], P0[b, b], Q[a, a], Q[a, b], Q[b, b], R[j, j]))),
+                            dt, n_max)
         for j, (a, b) in enumerate(_BLOCKS)
     ]
     m = max(len(ks) for ks, _, _ in per_block)

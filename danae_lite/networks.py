@@ -6,10 +6,13 @@ for each *head* (``"roll"``, ``"pitch"``, ``"yaw"`` for the paper's one-network-
 DANAE; ``"joint"`` for a variant that predicts all angles at once), and returns a
 :class:`~danae_lite.train.TrainResult` per ``(head, seed)``.
 
-* **Cache** (``cache``, a folder or None): passed in by the entry point, never read from the
-  environment here. A network is stored as ``<cache>/<tag>-seed<seed>-<key>.pt``, ``key``
-  hashing everything that determines it (:func:`cache_key`); a network with the same key
-  under another tag is the same network and is loaded.
+* **Cache** (``cache``: a :class:`NetworkCache`, a plain folder, or None): passed in by the
+  entry point, never read from the environment here. A network is stored as
+  ``<cache>/<tag>-seed<seed>-<key>.pt``, ``key`` hashing everything that determines it
+  (:func:`cache_key`); a network with the same key under another tag is the same network and
+  is loaded; a damaged file is reported (a warning naming it) and the network trained again
+  in its place. A :class:`NetworkCache` with a size cap removes its least recently used files
+  when a new one would exceed the cap (a plain folder has no cap).
 * **Parallel** (``jobs``): the trainings that the cache does not hold run in ``jobs`` worker
   processes (:func:`in_processes`, the package's one process pool, also used by
   :mod:`danae_lite.crossval`), each with ``max(1, cores // jobs)`` torch threads
@@ -23,6 +26,7 @@ import ast
 import hashlib
 import importlib
 import os
+import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
@@ -33,7 +37,7 @@ from typing import Any, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
-from .checkpoints import load_result, save
+from .checkpoints import CheckpointError, load_result, save
 from .train import TrainConfig, TrainResult, train
 
 Array = NDArray[np.float64]
@@ -51,6 +55,56 @@ NETWORK_CODE: tuple[str, ...] = (
 Left out: the checkpoint files (:mod:`danae_lite.checkpoints`: writing and reading a network
 changes no network) and this module (caching and worker processes change no network either),
 so editing them keeps the cache."""
+
+
+@dataclass(frozen=True)
+class NetworkCache:
+    """A folder of trained networks, optionally capped in size.
+
+    Loading a network marks it used (its modification time is set to now); storing one that
+    takes the folder past ``max_bytes`` removes the least recently used files first, never
+    the one just stored. It is a path (``os.fspath(cache)`` is the folder), so it goes
+    wherever a cache folder is accepted.
+    """
+
+    folder: Path
+    """Where the ``.pt`` files are."""
+    max_bytes: int | None = None
+    """Cap on the total size of the folder's ``.pt`` files [bytes]; None: no cap."""
+
+    def __fspath__(self) -> str:
+        return str(self.folder)
+
+    def prune(self, keep: Path | None = None) -> list[Path]:
+        """Remove the least recently used files until the folder is within ``max_bytes``;
+        ``keep`` is never removed. Returns the files removed (oldest first)."""
+        if self.max_bytes is None or not self.folder.is_dir():
+            return []
+        files = []
+        for f in self.folder.glob("*.pt"):
+            try:
+                st = f.stat()
+            except FileNotFoundError:  # removed meanwhile by another process sharing the folder
+                continue
+            files.append((st.st_mtime, f, st.st_size))
+        total = sum(size for _, _, size in files)
+        removed = []
+        for _, f, size in sorted(files):
+            if total <= self.max_bytes:
+                break
+            if f == keep:
+                continue
+            f.unlink(missing_ok=True)
+            total -= size
+            removed.append(f)
+        return removed
+
+
+def as_cache(cache: str | os.PathLike[str] | None) -> NetworkCache | None:
+    """``cache`` as a :class:`NetworkCache` (a plain folder: no size cap), or None."""
+    if cache is None or isinstance(cache, NetworkCache):
+        return cache
+    return NetworkCache(Path(cache).expanduser().resolve())
 
 
 @dataclass(frozen=True)
@@ -95,18 +149,27 @@ def cache_key(job: NetworkJob) -> str:
     return h.hexdigest()[:16]
 
 
-def _cached(job: NetworkJob, folder: Path | None) -> TrainResult | None:
-    if folder is None:
+def _cached(job: NetworkJob, cache: NetworkCache | None) -> TrainResult | None:
+    if cache is None:
         return None
-    for found in sorted(folder.glob(f"*-seed{job.config.seed}-{cache_key(job)}.pt")):
-        return load_result(found)
+    for found in sorted(cache.folder.glob(f"*-seed{job.config.seed}-{cache_key(job)}.pt")):
+        try:
+            os.utime(found)  # used now: the last to be removed by the size cap
+            return load_result(found)
+        except FileNotFoundError:  # removed meanwhile by another process sharing the folder
+            continue
+        except CheckpointError as err:  # damaged: trained again, and the file replaced
+            warnings.warn(f"{err}; the network is trained again and the file replaced", stacklevel=2)
+            continue
     return None
 
 
-def _store(job: NetworkJob, res: TrainResult, folder: Path | None) -> None:
-    if folder is not None:
-        folder.mkdir(parents=True, exist_ok=True)
-        save(res, folder / f"{job.tag}-seed{job.config.seed}-{cache_key(job)}.pt", metadata=dict(job.metadata))
+def _store(job: NetworkJob, res: TrainResult, cache: NetworkCache | None) -> None:
+    if cache is not None:
+        cache.folder.mkdir(parents=True, exist_ok=True)
+        path = save(res, cache.folder / f"{job.tag}-seed{job.config.seed}-{cache_key(job)}.pt",
+                    metadata=dict(job.metadata))
+        cache.prune(keep=path)
 
 
 def _run(job: NetworkJob, progress: bool) -> TrainResult:
@@ -156,19 +219,19 @@ def run_jobs(jobs_: Sequence[NetworkJob], *, cache: str | os.PathLike[str] | Non
     ``jobs`` > 1 trains the missing networks in that many worker processes (see the module
     docstring); their results are stored in the cache by this process.
     """
-    folder = Path(cache).expanduser().resolve() if cache is not None else None
-    results: list[TrainResult | None] = [_cached(j, folder) for j in jobs_]
+    store = as_cache(cache)
+    results: list[TrainResult | None] = [_cached(j, store) for j in jobs_]
     todo = [i for i, r in enumerate(results) if r is None]
     if jobs > 1 and len(todo) > 1:
         threads = threads_per_process(jobs)
         calls = [(replace(jobs_[i], config=_threads(jobs_[i].config, threads)), False) for i in todo]
         for res, i in zip(in_processes(_run, calls, processes=jobs, threads=threads), todo):
             results[i] = res
-            _store(jobs_[i], res, folder)
+            _store(jobs_[i], res, store)
     else:
         for i in todo:
             results[i] = _run(jobs_[i], progress)
-            _store(jobs_[i], results[i], folder)
+            _store(jobs_[i], results[i], store)
     return [r for r in results if r is not None]
 
 

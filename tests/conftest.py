@@ -13,6 +13,19 @@ OXIOD_KS = (2, 3, 4, 7)
 SYNTH_ROWS = 200
 
 
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Run the chapters first, the last chapter first (later chapters build on the earlier ones
+    and cost the most), then the unit tests in their usual order.
+
+    ``make test`` hands whole files to its workers in this order (``--dist loadfile
+    --no-loadscope-reorder``: xdist would otherwise put the files with the most tests first), so the
+    two longest chapters start at once on two workers and the short unit-test files fill the
+    gaps, instead of two long chapters queueing on one worker while the other idles.
+    """
+    chapters = sorted((i for i in items if i.path.suffix == ".ipynb"), key=lambda i: i.path.name, reverse=True)
+    items[:] = chapters + [i for i in items if i.path.suffix != ".ipynb"]
+
+
 def synthetic_oxiod(n: int = SYNTH_ROWS, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Rows of an OxIOD-format (imu, vi) pair built from a known rotation, plus its (N, 3) Euler.
 

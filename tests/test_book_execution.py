@@ -75,6 +75,7 @@ def test_copies_are_executed_with_the_given_environment_and_stamped(tmp_path, mo
     assert datetime.fromisoformat(record["executed"]).utcoffset().total_seconds() == 0
     assert record["python"] and record["torch"]
     assert table.to_dict("records") == [{"notebook": "tiny.ipynb", "seconds": record["seconds"],
+                                         "networks_trained": 0, "networks_cached": 0,
                                          "data": "simulated", "fast": True,
                                          "written": str(out.resolve() / "tiny.ipynb")}]
 
@@ -175,3 +176,77 @@ def test_cli_help_explains_the_safety_rule(capsys):
     assert done.value.code == 0
     text = " ".join(capsys.readouterr().out.split())
     assert "rewritten in place only for a full-mode run with real data" in text and "--out DIR" in text
+
+
+def _book_root(tmp_path: Path, fresh: bool) -> Path:
+    """A repository root with a _toc.yml and two chapters: 01_one stamped by a full-mode, real-data
+    run of its code (fresh when ``fresh``), 02_two never executed (stale)."""
+    root = tmp_path / "repo"
+    (root / "notebooks").mkdir(parents=True)
+    (root / "_toc.yml").write_text("format: jb-book\nroot: intro\nchapters:\n"
+                                   "  - file: notebooks/01_one\n  - file: notebooks/02_two\n")
+    one = write_notebook(root / "notebooks" / "01_one.ipynb", "# 1. One", "print(1)")
+    write_notebook(root / "notebooks" / "02_two.ipynb", "# 2. Two", "print(2)")
+    if fresh:
+        nb = nbformat.read(one, as_version=4)
+        stamp(nb, seconds=1.0, data_dir=tmp_path / "data", fast=False)
+        nbformat.write(nb, one)
+    return root
+
+
+@pytest.mark.parametrize(("argv", "fresh", "expected"), [
+    ([], True, ["02_two"]),                      # the stale chapter only
+    ([], False, ["01_one", "02_two"]),
+    (["--all"], True, ["01_one", "02_two"]),     # forced
+    (["--only", "01_one"], True, ["01_one"]),    # named: run even though fresh
+])
+def test_make_execute_runs_the_stale_chapters_unless_told_otherwise(tmp_path, monkeypatch, capsys, argv, fresh,
+                                                                    expected):
+    root = _book_root(tmp_path, fresh)
+    (tmp_path / "data").mkdir()
+    monkeypatch.chdir(root)
+    monkeypatch.setenv("DANAE_DATA", str(tmp_path / "data"))
+    monkeypatch.delenv("DANAE_FAST", raising=False)
+    monkeypatch.setenv("DANAE_CACHE", str(tmp_path / "cache"))
+    ran: list[list[str]] = []
+    monkeypatch.setattr(book, "execute_book", lambda paths, **kw: ran.append([Path(p).stem for p in paths]))
+    assert main(argv) == 0
+    assert ran == [expected]
+    if fresh and not argv:
+        assert "up to date, left as they are: 01_one" in capsys.readouterr().out
+
+
+def test_make_execute_with_nothing_stale_runs_nothing(tmp_path, monkeypatch, capsys):
+    root = _book_root(tmp_path, fresh=True)
+    two = root / "notebooks" / "02_two.ipynb"
+    nb = nbformat.read(two, as_version=4)
+    stamp(nb, seconds=1.0, data_dir=tmp_path / "data", fast=False)
+    nbformat.write(nb, two)
+    monkeypatch.chdir(root)
+    monkeypatch.setattr(book, "execute_book", lambda *a, **kw: pytest.fail("nothing is stale"))
+    assert main([]) == 0
+    assert "nothing to re-execute" in capsys.readouterr().out
+
+
+def test_cold_runs_in_a_new_cache_that_is_removed_afterwards(tmp_path, monkeypatch):
+    root = _book_root(tmp_path, fresh=False)
+    (tmp_path / "data").mkdir()
+    monkeypatch.chdir(root)
+    monkeypatch.setenv("DANAE_DATA", str(tmp_path / "data"))
+    monkeypatch.setenv("DANAE_CACHE", str(tmp_path / "warm"))
+    seen: list[Path] = []
+
+    def fake(paths, *, cache_dir, **kw):
+        seen.append(Path(cache_dir))
+        assert Path(cache_dir).is_dir() and not any(Path(cache_dir).iterdir())
+
+    monkeypatch.setattr(book, "execute_book", fake)
+    assert main(["--cold"]) == 0
+    assert len(seen) == 1 and seen[0] != tmp_path / "warm" and not seen[0].exists()
+
+
+def test_network_counts_tell_trained_from_loaded_files():
+    before = {"a.pt": 10.0, "b.pt": 10.0, "c.pt": 10.0}
+    after = {"a.pt": 10.0, "b.pt": 25.0, "c.pt": 30.0, "d.pt": 31.0, "e.pt": 32.0}   # b, c loaded; d, e new
+    assert book._network_counts(before, after, start=20.0) == (2, 2)
+    assert book._network_counts({}, {}, start=0.0) == (0, 0)

@@ -25,3 +25,43 @@ def test_data_dir(monkeypatch, tmp_path):
     monkeypatch.setenv("DANAE_DATA", str(tmp_path / "nope"))
     with pytest.raises(FileNotFoundError, match=r"\$DANAE_DATA"):
         data_dir()
+
+
+def test_cache_defaults_to_the_user_cache_folder_and_can_be_turned_off(monkeypatch, tmp_path):
+    from danae_lite.config import RunSettings, cache_dir
+
+    monkeypatch.delenv("DANAE_CACHE", raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))  # platformdirs' Linux convention
+    assert cache_dir() == (tmp_path / "xdg" / "danae_lite").resolve()
+    monkeypatch.setenv("DANAE_CACHE", str(tmp_path / "mine"))
+    assert cache_dir() == (tmp_path / "mine").resolve()
+    for off in ("off", "none", "OFF"):
+        monkeypatch.setenv("DANAE_CACHE", off)
+        assert cache_dir() is None and RunSettings.from_env().cache is None
+    assert cache_dir(tmp_path) == tmp_path.resolve()  # an explicit folder wins over the variable
+
+
+def test_full_and_fast_networks_are_kept_apart_each_capped(monkeypatch, tmp_path):
+    from danae_lite.config import DEFAULT_CACHE_GB, RunSettings, kernel_environment
+
+    monkeypatch.setenv("DANAE_CACHE", str(tmp_path))
+    monkeypatch.delenv("DANAE_CACHE_GB", raising=False)
+    full, fast = RunSettings.from_env(fast=False).cache, RunSettings.from_env(fast=True).cache
+    assert (full.folder, fast.folder) == (tmp_path.resolve() / "full", tmp_path.resolve() / "fast")
+    assert full.max_bytes == fast.max_bytes == int(DEFAULT_CACHE_GB * 1e9)
+    monkeypatch.setenv("DANAE_CACHE_GB", "0.5")
+    assert RunSettings.from_env().cache.max_bytes == 500_000_000
+    # a chapter's kernel reads back the same root and cap (not the sub-folder: it picks its own)
+    env = kernel_environment(data_dir=None, cache=tmp_path, fast=True, n_jobs=1, max_gb=0.5, base={})
+    monkeypatch.setattr("os.environ", env)
+    assert RunSettings.from_env().cache == fast.__class__(tmp_path.resolve() / "fast", 500_000_000)
+    assert kernel_environment(data_dir=None, cache=None, fast=False, n_jobs=1, base={})["DANAE_CACHE"] == "off"
+
+
+@pytest.mark.parametrize("bad", ["0", "-1", "lots", "inf"])
+def test_cache_cap_must_be_a_positive_size(monkeypatch, bad):
+    from danae_lite.config import cache_gb
+
+    monkeypatch.setenv("DANAE_CACHE_GB", bad)
+    with pytest.raises(ValueError, match=f"DANAE_CACHE_GB='{bad}'"):
+        cache_gb()

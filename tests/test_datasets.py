@@ -93,8 +93,8 @@ def test_simulated_oxiod_when_no_data(capsys):
     assert [r.name for r in exp.test] == ["sim-handheld-0"]
     assert [r.name for r in exp.train] == ["sim-handheld-1", "sim-handheld-2", "sim-handheld-3"]
     assert [r.meta["seed"] for r in exp.test + exp.train] == [3, 4, 5, 6]
-    assert all(len(r) == 6000 and r.fs == 100.0 for r in exp.train + exp.test)  # 60 s in fast mode
-    reference = simulate("handheld", duration=60.0, seed=4)
+    assert all(len(r) == 100 * datasets.FAST_DURATION["handheld"] and r.fs == 100.0 for r in exp.train + exp.test)
+    reference = simulate("handheld", duration=datasets.FAST_DURATION["handheld"], seed=4)
     np.testing.assert_array_equal(exp.train[0].gyro, reference.gyro)
     assert "(no data directory given)" in exp.note and "handheld simulator stands in" in exp.note
     assert capsys.readouterr().out.strip() == exp.note
@@ -109,12 +109,13 @@ def test_simulated_ucs_in_empty_data_dir(tmp_path):
     exp = load_experiment("ucs", tmp_path, fast=True, verbose=False)
     assert (exp.name, exp.data) == ("ucs", "simulated")
     (train,), (test,) = exp.train, exp.test
-    assert (len(train), len(test), train.fs) == (4800, 1200, 10.0)  # 600 s at 10 Hz, 80/20
+    n = int(10 * datasets.FAST_DURATION["underwater"])  # samples at 10 Hz, split 80/20
+    assert (len(train), len(test), train.fs) == (0.8 * n, 0.2 * n, 10.0)
     from danae_lite.simulate import simulate
 
-    full = simulate("underwater", duration=600.0, seed=0)
+    full = simulate("underwater", duration=datasets.FAST_DURATION["underwater"], seed=0)
     np.testing.assert_array_equal(np.r_[train.acc, test.acc], full.acc)
-    np.testing.assert_array_equal(test.meta["true_acc"], full.meta["true_acc"][4800:])
+    np.testing.assert_array_equal(test.meta["true_acc"], full.meta["true_acc"][len(train):])
     assert f"under {tmp_path}" in exp.note and "underwater simulator" in exp.note
 
 

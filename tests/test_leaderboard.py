@@ -109,7 +109,7 @@ def test_unknown_method_is_rejected(board):
 
 def test_cli_leaderboard_on_the_simulator(tmp_path, capsys, monkeypatch):
     monkeypatch.delenv("DANAE_DATA", raising=False)
-    monkeypatch.delenv("DANAE_CACHE", raising=False)
+    monkeypatch.setenv("DANAE_CACHE", "off")
     code = cli.main(["leaderboard", "--fast", "--seeds", "0", "--max-steps", "2", "--threads", "1",
                      "--methods", "paper_kf", "moving_average", "danae", "--out", str(tmp_path)])
     out = capsys.readouterr().out

@@ -140,3 +140,45 @@ def test_worker_processes_give_the_same_networks(data, tmp_path):
         for k, v in serial[key].model.state_dict().items():
             torch.testing.assert_close(parallel[key].model.state_dict()[k], v, rtol=1e-5, atol=1e-6)
     assert len(list(tmp_path.glob("*.pt"))) == 4  # stored by the parent
+
+
+def _files(folder, sizes_and_ages):
+    """Write files of the given sizes [bytes], each ``age`` seconds old."""
+    import os
+    import time
+
+    now = time.time()
+    for name, (size, age) in sizes_and_ages.items():
+        f = folder / name
+        f.write_bytes(b"x" * size)
+        os.utime(f, (now - age, now - age))
+
+
+def test_a_capped_cache_removes_the_least_recently_used_networks_first(tmp_path):
+    _files(tmp_path, {"old.pt": (400, 300), "mid.pt": (400, 200), "new.pt": (400, 100), "notes.txt": (10_000, 400)})
+    cache = networks.NetworkCache(tmp_path, max_bytes=900)
+    assert cache.prune() == [tmp_path / "old.pt"]  # 1200 -> 800 bytes; other files are not networks
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["mid.pt", "new.pt", "notes.txt"]
+    assert networks.NetworkCache(tmp_path, max_bytes=0).prune(keep=tmp_path / "mid.pt") == [tmp_path / "new.pt"]
+    assert networks.NetworkCache(tmp_path).prune() == []  # no cap
+    assert networks.as_cache(tmp_path) == networks.NetworkCache(tmp_path.resolve())
+
+
+def test_loading_a_network_keeps_it_in_a_capped_cache(data, tmp_path):
+    import os
+
+    _, xs, ys = data
+    cfg = TrainConfig(max_steps=2, num_threads=1)
+    cache = networks.NetworkCache(tmp_path, max_bytes=10**9)
+    networks.train_networks({"roll": xs["roll"]}, {"roll": ys["roll"]}, cfg, (0,), cache=cache)
+    networks.train_networks({"roll": xs["roll"]}, {"roll": ys["roll"]}, cfg, (1,), cache=cache)
+    first, second = (next(tmp_path.glob(f"*-seed{s}-*.pt")) for s in (0, 1))
+    os.utime(first, (1.0, 1.0))
+    os.utime(second, (2.0, 2.0))
+    networks.train_networks({"roll": xs["roll"]}, {"roll": ys["roll"]}, cfg, (0,), cache=cache)  # loads seed 0
+    assert first.stat().st_mtime > second.stat().st_mtime
+    size = first.stat().st_size
+    # room for two networks: a third one pushes out seed 1, the least recently used
+    small = networks.NetworkCache(tmp_path, max_bytes=2 * size + size // 2)
+    networks.train_networks({"roll": xs["roll"]}, {"roll": ys["roll"]}, cfg, (2,), cache=small)
+    assert sorted(int(p.name.split("-seed")[1].split("-")[0]) for p in tmp_path.glob("*.pt")) == [0, 2]

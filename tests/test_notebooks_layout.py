@@ -7,8 +7,7 @@ from pathlib import Path
 
 import pytest
 
-import danae_lite
-from danae_lite.book import code_hash, execution_record, stamp
+from danae_lite.book import stale_reason, stamp
 
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("[0-9][0-9]_*.ipynb"))
@@ -43,31 +42,6 @@ def test_no_stored_output_is_a_warning_on_stderr(path):
     stderr = [(i, "".join(o.get("text", ""))[:120]) for i, c in enumerate(nb["cells"]) if c["cell_type"] == "code"
               for o in c.get("outputs", []) if o.get("output_type") == "stream" and o.get("name") == "stderr"]
     assert not stderr, f"{path.name}: stderr output stored in (cell, text): {stderr}"
-
-
-def stale_reason(nb: dict, stem: str) -> str | None:
-    """Why a chapter's stored outputs cannot be trusted to match its code, or None when they can.
-
-    The book renders the stored outputs without executing anything, so they must come from a
-    full-mode, real-data run of the code as it is now, by this version of danae_lite.
-    """
-    rerun = (f"re-execute it with real data: DANAE_DATA=/path/to/data make execute "
-             f"(or: python -m danae_lite.book --only {stem})")
-    record = execution_record(nb)
-    if record is None:
-        return (f"{stem}: its stored outputs carry no execution record (metadata.danae.execution), so its "
-                f"code cells may have changed after they were produced; {rerun}")
-    problems = []
-    if record.get("code_sha256") != code_hash(nb):
-        problems.append("its code cells changed after its stored outputs were produced")
-    if record.get("danae_lite_version") != danae_lite.__version__:
-        problems.append(f"its outputs come from danae_lite {record.get('danae_lite_version')}, "
-                        f"not {danae_lite.__version__}")
-    if record.get("data") != "real":
-        problems.append(f"its outputs come from {record.get('data')} data, not the real data")
-    if record.get("fast") is not False:
-        problems.append("its outputs come from a fast-mode run")
-    return f"{stem}: {'; '.join(problems)}; {rerun}" if problems else None
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
@@ -118,3 +92,15 @@ def test_every_figure_is_stored_as_an_image(path):
                and not any("image/png" in o.get("data", {}) for o in c.get("outputs", []))]
     assert any(DRAWS.search("".join(c["source"])) for c in nb["cells"] if c["cell_type"] == "code"), path.name
     assert not missing, f"{path.name}: cells {missing} draw a figure but store no image; re-execute the chapter"
+
+
+def test_make_test_starts_the_chapters_first_the_last_chapter_first():
+    from types import SimpleNamespace
+
+    from conftest import pytest_collection_modifyitems
+
+    names = ["tests/test_a.py", "notebooks/01_x.ipynb", "tests/test_b.py", "notebooks/06_y.ipynb",
+             "notebooks/05_z.ipynb", "tests/test_a.py"]
+    items = [SimpleNamespace(path=Path(n), n=i) for i, n in enumerate(names)]
+    pytest_collection_modifyitems(None, items)
+    assert [i.n for i in items] == [3, 4, 1, 0, 2, 5]  # chapters 6, 5, 1, then the tests as collected
