@@ -23,6 +23,7 @@ DANAE; ``"joint"`` for a variant that predicts all angles at once), and returns 
 from __future__ import annotations
 
 import ast
+import functools
 import hashlib
 import importlib
 import os
@@ -125,7 +126,14 @@ class NetworkJob:
 def _module_source(name: str) -> bytes:
     """The code of module ``name`` without its docstrings and comments (``ast.unparse``), as
     bytes: editing the documentation, or moving the file, keeps the networks."""
-    tree = ast.parse(Path(importlib.import_module(name).__file__ or "").read_text(encoding="utf-8"))
+    return _code_only(Path(importlib.import_module(name).__file__ or "").read_bytes())
+
+
+@functools.lru_cache(maxsize=32)
+def _code_only(source: bytes) -> bytes:
+    """``source`` parsed and unparsed without its docstrings and comments; remembered per source
+    text, since every network of a run hashes the same few files (parsing them is slow)."""
+    tree = ast.parse(source)
     for node in ast.walk(tree):  # a bare string statement (a docstring) does nothing
         body = getattr(node, "body", None)
         if isinstance(body, list):
