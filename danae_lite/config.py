@@ -167,9 +167,6 @@ FAST_MAX_STEPS = 100
 """Fast mode: cap on optimiser steps per network."""
 FAST_EPOCHS = 2
 """Fast mode: cap on the epochs per network."""
-FAST_VAL_CHECKS = 4
-"""Fast mode: validation checks per network (instead of ten per epoch), unless the
-configuration sets ``val_every`` itself."""
 FAST_SEEDS: tuple[int, ...] = (0,)
 """Fast mode: training seeds (one network per angle)."""
 FULL_SEEDS: tuple[int, ...] = (0, 1, 2)
@@ -181,8 +178,7 @@ class RunSettings:
     """The one settings object of a run (command line, chapter or script).
 
     Fast mode shrinks the run in one place: :meth:`train_config` caps every network at
-    :data:`FAST_MAX_STEPS` optimiser steps and :data:`FAST_EPOCHS` epochs (and
-    :data:`FAST_VAL_CHECKS` validation checks), the default seeds
+    :data:`FAST_MAX_STEPS` optimiser steps and :data:`FAST_EPOCHS` epochs, the default seeds
     become :data:`FAST_SEEDS`, and :func:`danae_lite.datasets.load_experiment` shortens the
     recordings (its ``FAST_*`` constants).
     """
@@ -231,13 +227,11 @@ class RunSettings:
     def train_config(self, base: "TrainConfig | None" = None, **overrides: Any) -> "TrainConfig":
         """``base`` (default the paper's :class:`~danae_lite.train.TrainConfig`) with
         ``overrides``, this run's device, and in fast mode at most :data:`FAST_EPOCHS` epochs
-        and :data:`FAST_MAX_STEPS` steps per network, with :data:`FAST_VAL_CHECKS` validation
-        checks (unless ``val_every`` is set)."""
+        and :data:`FAST_MAX_STEPS` steps per network."""
         cfg = replace(base or TrainConfig(), **overrides)
         if cfg.device is None:
             cfg = replace(cfg, device=self.device)
         if self.fast:
             steps = FAST_MAX_STEPS if cfg.max_steps is None else min(cfg.max_steps, FAST_MAX_STEPS)
-            every = cfg.val_every or max(1, steps // FAST_VAL_CHECKS)
-            cfg = replace(cfg, epochs=min(cfg.epochs, FAST_EPOCHS), max_steps=steps, val_every=every)
+            cfg = replace(cfg, epochs=min(cfg.epochs, FAST_EPOCHS), max_steps=steps)
         return cfg
