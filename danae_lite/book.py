@@ -152,7 +152,7 @@ def stale_chapters(paths: Sequence[Path]) -> list[Path]:
 
 
 def stamp(nb: MutableMapping[str, Any], *, seconds: float, data_dir: str | os.PathLike[str] | None,
-          fast: bool, executed: datetime | None = None) -> dict[str, Any]:
+          fast: bool, executed: datetime | None = None, networks: tuple[int, int] | None = None) -> dict[str, Any]:
     """Write the record of a run into ``nb.metadata["danae"]["execution"]`` and return it.
 
     Parameters
@@ -168,13 +168,17 @@ def stamp(nb: MutableMapping[str, Any], *, seconds: float, data_dir: str | os.Pa
         Whether the run was in fast mode.
     executed
         When the run happened; default now. Stored in UTC, to the second.
+    networks
+        (networks trained, networks found in the cache) by the run, when known: a run that
+        found none in the cache ran cold, one that trained none ran warm.
 
     Returns
     -------
     dict
         The record: ``code_sha256`` (:func:`code_hash`), ``danae_lite_version``, ``data``
         (``"real"`` or ``"simulated"``), ``data_dir``, ``fast``, ``seconds``, ``executed``,
-        ``python`` and ``torch`` versions.
+        ``python`` and ``torch`` versions, and with ``networks`` given ``networks_trained`` and
+        ``networks_cached``.
     """
     from importlib.metadata import PackageNotFoundError, version
 
@@ -196,6 +200,8 @@ def stamp(nb: MutableMapping[str, Any], *, seconds: float, data_dir: str | os.Pa
         "python": platform.python_version(),
         "torch": torch_version,
     }
+    if networks is not None:
+        record["networks_trained"], record["networks_cached"] = (int(n) for n in networks)
     metadata = nb.setdefault("metadata", {})
     metadata.setdefault("danae", {})["execution"] = record
     return record
@@ -220,7 +226,8 @@ def _write_atomically(nb: Any, target: Path) -> None:
 
 
 def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLike[str],
-                     env: Mapping[str, str], data_dir: Path | None, fast: bool, timeout: float | None) -> float:
+                     env: Mapping[str, str], data_dir: Path | None, fast: bool, timeout: float | None,
+                     networks: Path | None = None) -> dict[str, Any]:
     """Execute one notebook in a fresh ``python3`` kernel and write it, with its record, to ``out_path``.
 
     The kernel runs in the notebook's own folder (as Jupyter Book runs it) with exactly the
@@ -240,11 +247,16 @@ def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLik
         The data directory and fast mode that ``env`` gives the kernel, for the record (:func:`stamp`).
     timeout
         Limit for each cell [s]; ``None`` for no limit.
+    networks
+        The network cache folder of this mode (``<cache>/full`` or ``/fast``), whose files
+        tell the networks the chapter trained and loaded (:func:`_network_counts`); None: not
+        counted.
 
     Returns
     -------
-    float
-        Wall time of the execution [s], kernel start included.
+    dict
+        The record stamped into the notebook (:func:`stamp`): ``seconds`` is the wall time of
+        the execution, kernel start included.
 
     Raises
     ------
@@ -270,6 +282,7 @@ def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLik
     client = NotebookClient(nb, timeout=timeout, kernel_name="python3", allow_errors=False, record_timing=False,
                             resources={"metadata": {"path": str(path.parent)}},
                             on_cell_start=on_cell_start)
+    before, started = _network_files(networks), time.time()
     start = time.perf_counter()
     try:
         client.execute(cwd=str(path.parent), env=kernel_env)
@@ -282,9 +295,10 @@ def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLik
             detail = lines[-1] if lines else type(exc).__name__
         raise BookExecutionError(f"{path.name}: {where} failed: {detail}") from exc
     seconds = time.perf_counter() - start
-    stamp(nb, seconds=seconds, data_dir=data_dir, fast=fast)
+    counts = _network_counts(before, _network_files(networks), started) if networks is not None else None
+    record = stamp(nb, seconds=seconds, data_dir=data_dir, fast=fast, networks=counts)
     _write_atomically(nb, out_path)
-    return seconds
+    return record
 
 
 def _refusal(data_dir: Path | None, fast: bool) -> str | None:
@@ -338,7 +352,7 @@ def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str |
     pandas.DataFrame
         One row per notebook: ``notebook`` (file name), ``seconds``, ``networks_trained`` and
         ``networks_cached`` (files the chapter added to, and loaded from, the cache folder of its
-        mode), ``data`` (``"real"`` or ``"simulated"``), ``fast`` and ``written`` (the path written).
+        mode; None without a cache; also stored in its record), ``data`` (``"real"`` or ``"simulated"``), ``fast`` and ``written`` (the path written).
 
     Raises
     ------
@@ -376,16 +390,15 @@ def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str |
     for path in bar:
         bar.set_postfix_str(path.stem)
         target = out / path.name if out is not None else path
-        before = _network_files(networks)
-        start = time.time()
-        seconds = execute_notebook(path, out_path=target, env=env, data_dir=data, fast=fast, timeout=timeout)
-        trained, cached = _network_counts(before, _network_files(networks), start)
-        rows.append({"notebook": path.name, "seconds": round(seconds, 1), "networks_trained": trained,
+        record = execute_notebook(path, out_path=target, env=env, data_dir=data, fast=fast, timeout=timeout,
+                                  networks=networks)
+        seconds, trained, cached = (record.get(k) for k in ("seconds", "networks_trained", "networks_cached"))
+        rows.append({"notebook": path.name, "seconds": seconds, "networks_trained": trained,
                      "networks_cached": cached, "data": "real" if data else "simulated", "fast": fast,
                      "written": str(target)})
         if progress:
-            bar.write(f"{path.stem}: {seconds:.1f} s, {trained} network(s) trained, {cached} found in the "
-                      f"cache -> {target}")
+            counted = f", {trained} network(s) trained, {cached} found in the cache" if cached is not None else ""
+            bar.write(f"{path.stem}: {seconds:.1f} s{counted} -> {target}")
     bar.close()
     table = pd.DataFrame(rows, columns=["notebook", "seconds", "networks_trained", "networks_cached", "data",
                                         "fast", "written"])

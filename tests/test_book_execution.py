@@ -74,6 +74,7 @@ def test_copies_are_executed_with_the_given_environment_and_stamped(tmp_path, mo
     assert record["seconds"] > 0
     assert datetime.fromisoformat(record["executed"]).utcoffset().total_seconds() == 0
     assert record["python"] and record["torch"]
+    assert (record["networks_trained"], record["networks_cached"]) == (0, 0)  # a cache was given: counted
     assert table.to_dict("records") == [{"notebook": "tiny.ipynb", "seconds": record["seconds"],
                                          "networks_trained": 0, "networks_cached": 0,
                                          "data": "simulated", "fast": True,
@@ -140,6 +141,9 @@ def test_stamp_keeps_only_the_name_of_the_data_folder(tmp_path):
     assert execution_record(nb) == record
     assert (record["data"], record["data_dir"], record["fast"]) == ("real", "data", False)
     assert record["seconds"] == 12.3
+    assert "networks_trained" not in record  # not counted
+    counted = stamp(nb, seconds=1.0, data_dir=None, fast=True, networks=(7, 6))
+    assert (counted["networks_trained"], counted["networks_cached"]) == (7, 6)
     assert str(tmp_path) not in json.dumps(nb.metadata)
 
 
@@ -250,3 +254,22 @@ def test_network_counts_tell_trained_from_loaded_files():
     after = {"a.pt": 10.0, "b.pt": 25.0, "c.pt": 30.0, "d.pt": 31.0, "e.pt": 32.0}   # b, c loaded; d, e new
     assert book._network_counts(before, after, start=20.0) == (2, 2)
     assert book._network_counts({}, {}, start=0.0) == (0, 0)
+
+
+def test_a_run_counts_the_networks_it_trained_and_loaded(tmp_path):
+    src = write_notebook(
+        tmp_path / "nbs" / "nets.ipynb", "# Networks",
+        "from danae_lite.book import setup\ncfg = setup(verbose=False)",
+        "import numpy as np\nfrom danae_lite import networks\nfrom danae_lite.train import TrainConfig\n"
+        "x = [np.sin(np.linspace(0.0, 20.0, 300))]\n"
+        "nets = networks.train_networks({'roll': x}, {'roll': x}, TrainConfig(max_steps=2, num_threads=1), (0, 1),"
+        " cache=cfg.cache)",
+    )
+    cache = tmp_path / "cache"
+    first = execute_book([src], data_dir=None, cache_dir=cache, fast=True, out_dir=tmp_path / "a", progress=False)
+    again = execute_book([src], data_dir=None, cache_dir=cache, fast=True, out_dir=tmp_path / "b", progress=False)
+    assert first[["networks_trained", "networks_cached"]].values.tolist() == [[2, 0]]  # cold
+    assert again[["networks_trained", "networks_cached"]].values.tolist() == [[0, 2]]  # warm
+    assert len(list((cache / "fast").glob("*.pt"))) == 2 and not (cache / "full").exists()
+    record = execution_record(nbformat.read(tmp_path / "b" / "nets.ipynb", as_version=4))
+    assert (record["networks_trained"], record["networks_cached"]) == (0, 2)
