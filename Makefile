@@ -4,8 +4,10 @@
 #   make test    -> unit tests plus every notebook under nbmake (fast mode), same venv; one torch
 #                   thread per pytest worker (OMP_NUM_THREADS=1): $(JOBS) workers share the cores,
 #                   each taking whole files, the chapters first (tests/conftest.py orders them)
-#   make execute -> re-executes every chapter in place, in full mode on real data, storing the outputs
-#                   that `make book` renders (python -m danae_lite.book; ARGS="--only 03_danae" for one),
+#   make execute -> re-executes in place the chapters whose stored outputs are stale (ARGS=--all: every
+#                   chapter; ARGS="--only 03_danae": that one; ARGS=--cold: every network trained anew),
+#                   in full mode on real data, storing the outputs that `make book` renders
+#                   (python -m danae_lite.book),
 #                   with DANAE_JOBS (default: one worker process per core) parallel trainings and folds.
 #                   It needs DANAE_DATA and refuses to run without it (or in fast mode) unless
 #                   ARGS="--out DIR" writes the executed copies elsewhere.
