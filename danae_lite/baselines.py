@@ -66,7 +66,7 @@ from numpy.typing import NDArray
 from scipy import signal
 from scipy.ndimage import uniform_filter1d
 
-from . import filters, kalman, methods
+from . import filters, kalman, kf_grid, methods
 from .angles import ANGLES, wrap
 from .methods import Method, total_error_rmse, total_objective, train_objective
 from .paper_danae import PaperDanae, check_settings, continuous_target
@@ -164,14 +164,13 @@ class TunedKF(PaperKF):
 
     def fit(self, ctx: Context) -> "TunedKF":
         self.ctx = ctx
-        rows = []
-        for qt, qb, qy in itertools.product(KF_Q_ANGLE, KF_Q_BIAS, KF_Q_ANGLE):
-            cfg = self._config(qt, qb, qy)
-            est = {r.name: self.ctx.alignment.to_truth_frame(kalman.run_kf(r, cfg).euler) for r in ctx.train}
-            per_angle = train_objective(est, ctx, (0, 1, 2))
-            rows.append({"q_tilt": qt, "q_bias": qb, "q_yaw": qy, "objective": total_objective(est, ctx),
-                         **{f"rmse_{a}": float(v) for a, v in zip(ANGLES, per_angle)}})
-        self.search = pd.DataFrame(rows)
+        grid = list(itertools.product(KF_Q_ANGLE, KF_Q_BIAS, KF_Q_ANGLE))
+        scores = kf_grid.score_kf_grid([self._config(*g) for g in grid], ctx.train, ctx.clean,
+                                       ctx.alignment.north_yaw)
+        self.search = pd.DataFrame(grid, columns=["q_tilt", "q_bias", "q_yaw"])
+        self.search["objective"] = scores.total
+        for j, a in enumerate(ANGLES):
+            self.search[f"rmse_{a}"] = scores.per_angle[:, j]
         best = self.search.loc[self.search["objective"].idxmin()]
         self.params = {"q_tilt": float(best.q_tilt), "q_bias": float(best.q_bias), "q_yaw": float(best.q_yaw)}
         self.config = self._config(**self.params)

@@ -44,18 +44,14 @@ from typing import TYPE_CHECKING, Iterable
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from .angles import quat_angle
+
 if TYPE_CHECKING:
     import pandas as pd
 
     from .recording import Recording
 
 Index = NDArray[np.int64]
-
-
-def quat_angle(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
-    """Rotation angle [rad] between unit quaternions ``a`` and ``b`` (..., 4), in [0, pi], sign-free."""
-    b = np.where(np.sum(a * b, axis=-1, keepdims=True) < 0.0, -b, b)
-    return 4.0 * np.arctan2(np.linalg.norm(a - b, axis=-1), np.linalg.norm(a + b, axis=-1))
 
 
 @dataclass(frozen=True)

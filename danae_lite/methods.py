@@ -21,10 +21,9 @@ from typing import Any
 import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
-from scipy.spatial.transform import Rotation
 
 from .alignment import FrameAlignment
-from .angles import euler_to_quat
+from .angles import euler_error_angle
 from .metrics import errors, rmse
 from .recording import Recording
 from .train import TrainConfig
@@ -124,8 +123,7 @@ def total_error_rmse(est: dict[str, Array], recs: Sequence[Recording], clean: di
         e = np.array(est[r.name][ok], dtype=float)
         missing = np.isnan(e[:, 2])
         e[missing, 2] = r.euler[ok][missing, 2]
-        err = Rotation.from_quat(euler_to_quat(e)) * Rotation.from_quat(r.quat[ok]).inv()
-        angles.append(err.magnitude())
+        angles.append(euler_error_angle(e, r.quat[ok]))
     a = np.concatenate(angles)
     return float(np.sqrt(np.mean(a * a)))
 
