@@ -29,6 +29,7 @@ Three layers; imports run one way only, entry points -> research engine -> core
 
 * :mod:`~danae_lite.methods`      the method protocol (:class:`~danae_lite.methods.Method`) and its objectives
 * :mod:`~danae_lite.filters`      established attitude filters (Fusion, VQF, Madgwick, Mahony, RIANN)
+* :mod:`~danae_lite.kf_offline`   the KF after the fact: innovations and their NIS, the RTS smoother
 * :mod:`~danae_lite.kf_grid`      the paper's KF for a whole grid of settings in one pass (tuning)
 * :mod:`~danae_lite.baselines`    classical methods of the leaderboard (tuned KF, low-pass, linear map, ...)
 * :mod:`~danae_lite.features`     input channels and causal network shared by the learned methods

@@ -19,7 +19,7 @@ name                      what it is / what is tuned on the training recordings
                           three searched jointly on a grid (roll and pitch feed the heading
                           formula, so no angle is tuned on runs where the others had another Q)
 ``tuned_kf_rts``          the tuned KF followed by a Rauch-Tung-Striebel smoother
-                          (:func:`danae_lite.kalman.rts_smooth`): its non-causal counterpart
+                          (:func:`danae_lite.kf_offline.rts_smooth`): its non-causal counterpart
 ``butterworth``           the paper KF's output low-passed by a digital Butterworth filter
                           (``scipy.signal.butter``, order 2, second-order sections, zero phase with
                           ``sosfiltfilt``); cut-off [Hz] per angle from a grid
@@ -66,7 +66,7 @@ from numpy.typing import NDArray
 from scipy import signal
 from scipy.ndimage import uniform_filter1d
 
-from . import filters, kalman, kf_grid, methods
+from . import filters, kalman, kf_grid, kf_offline, methods
 from .angles import ANGLES, wrap
 from .methods import Method, total_error_rmse, total_objective, train_objective
 from .paper_danae import PaperDanae, check_settings, continuous_target
@@ -189,7 +189,7 @@ class TunedKFSmoother(PaperKF):
         return self
 
     def raw(self, rec: Recording) -> Array:
-        e = kalman.rts_smooth(kalman.run_kf(rec, self.config))[:, 0::2].copy()
+        e = kf_offline.rts_smooth(kalman.run_kf(rec, self.config))[:, 0::2].copy()
         e[:, 2] = e[:, 2] + self.ctx.alignment.north_yaw
         return e
 

@@ -23,7 +23,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "danae_lite"
 SETTINGS = "config"
 ENTRY = {"config", "book", "cli", "__main__"}
-RESEARCH = {"baselines", "kf_grid", "methods", "registry", "features", "variants", "leaderboard", "crossval", "denoiser",
+RESEARCH = {"baselines", "kf_grid", "kf_offline", "methods", "registry", "features", "variants", "leaderboard", "crossval", "denoiser",
             "streaming", "filters", "broad_benchmark"}
 
 

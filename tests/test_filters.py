@@ -133,7 +133,7 @@ def test_tuned_kf_searches_jointly_and_beats_the_paper_kf_on_training_data():
 
 
 def test_constant_is_the_training_mean_and_the_smoother_smooths_the_tuned_kf():
-    from danae_lite import kalman
+    from danae_lite import kalman, kf_offline
     from danae_lite.simulate import simulate
 
     recs = [simulate("handheld", duration=30.0, seed=s) for s in (1, 2)]
@@ -143,7 +143,7 @@ def test_constant_is_the_training_mean_and_the_smoother_smooths_the_tuned_kf():
     np.testing.assert_allclose(const.predict(recs[0])[0][5], [e[:, 0].mean(), e[:, 1].mean(),
                                                               np.angle(np.exp(1j * e[:, 2]).mean())])
     rts = ctx.method("tuned_kf_rts")
-    smooth = kalman.rts_smooth(kalman.run_kf(recs[0], ctx.method("tuned_kf").config))
+    smooth = kf_offline.rts_smooth(kalman.run_kf(recs[0], ctx.method("tuned_kf").config))
     got = rts.predict(recs[0])[0]
     np.testing.assert_allclose(got[:, :2], smooth[:, [0, 2]], atol=1e-12)
     assert not rts.causal and const.causal and ctx.method("tuned_kf").causal

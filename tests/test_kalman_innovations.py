@@ -1,4 +1,4 @@
-"""kalman.innovations checked against independent references.
+"""kf_offline.innovations (innovations of a finished run of the paper's KF) checked against independent references.
 
 (a) a plain numpy loop of eqs 3-7 written here, on a short simulator recording (block and
 general paths, yaw innovation wrapped or not); (b) the steady-state innovation covariance
@@ -15,15 +15,8 @@ import pytest
 import scipy.linalg
 from scipy import stats
 
-from danae_lite.kalman import (
-    Innovations,
-    KFConfig,
-    KFResult,
-    gain_sequence,
-    innovations,
-    run_kf,
-    system_matrices,
-)
+from danae_lite.kalman import KFConfig, KFResult, gain_sequence, run_kf, system_matrices
+from danae_lite.kf_offline import Innovations, innovations
 from danae_lite.simulate import simulate
 
 TUNED = dict(
