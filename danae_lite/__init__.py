@@ -44,7 +44,8 @@ Three layers; imports run one way only, entry points -> research engine -> core
 **Entry points**:
 
 * :mod:`~danae_lite.config`       the run settings, read from flags and ``DANAE_*`` variables (only here)
-* :mod:`~danae_lite.book`         the common first cell of every chapter and ``make execute``
+* :mod:`~danae_lite.book`         the common first cell of every chapter (``setup``)
+* :mod:`~danae_lite.execute`      ``make execute``: re-executes the stale chapters and records each run
 * :mod:`~danae_lite.cli`          ``python -m danae_lite reproduce|leaderboard``
 """
 from ._version import __version__

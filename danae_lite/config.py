@@ -1,6 +1,6 @@
 """Run-time settings: read from the environment by the entry points only, then passed along.
 
-The entry points (the command line, the book's ``setup()``, ``python -m danae_lite.book``)
+The entry points (the command line, the book's ``setup()``, ``python -m danae_lite.execute``)
 build one :class:`RunSettings` from their flags and these variables; everything below them
 takes its settings as arguments and never reads the environment.
 

@@ -1,4 +1,4 @@
-"""The re-execution command of the book (``python -m danae_lite.book``, ``make execute``).
+"""The re-execution command of the book (``python -m danae_lite.execute``, ``make execute``).
 
 Two tests start a kernel (a few seconds each); the others check what must happen before any
 kernel starts: the safety rule, the code hash, the record and the command line.
@@ -15,8 +15,8 @@ import pytest
 from nbformat.v4 import new_code_cell, new_markdown_cell, new_notebook
 
 import danae_lite
-from danae_lite import book
-from danae_lite.book import BookExecutionError, code_hash, execute_book, execution_record, main, stamp
+from danae_lite import execute
+from danae_lite.execute import BookExecutionError, code_hash, execute_book, execution_record, main, stamp
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -37,7 +37,7 @@ def no_kernel(monkeypatch: pytest.MonkeyPatch) -> None:
     def refuse(*args: object, **kwargs: object) -> float:
         raise AssertionError("a notebook was executed")
 
-    monkeypatch.setattr(book, "execute_notebook", refuse)
+    monkeypatch.setattr(execute, "execute_notebook", refuse)
 
 
 def test_copies_are_executed_with_the_given_environment_and_stamped(tmp_path, monkeypatch, capsys):
@@ -62,7 +62,7 @@ def test_copies_are_executed_with_the_given_environment_and_stamped(tmp_path, mo
     assert f"writing executed copies to {out}" in printed and "tiny: " in printed
     nb = nbformat.read(out / "tiny.ipynb", as_version=4)
     lines = nb.cells[1].outputs[0]["text"].splitlines()
-    assert lines == ["1", "None", f"{cache.resolve()} {book.INLINE_BACKEND} 0", str(src.parent.resolve())]
+    assert lines == ["1", "None", f"{cache.resolve()} {execute.INLINE_BACKEND} 0", str(src.parent.resolve())]
     assert nb.cells[2].outputs[0]["data"]["text/plain"] == "42"
     assert any("image/png" in o.get("data", {}) for o in nb.cells[3].outputs), "the figure was not stored"
     assert not any("execution" in c.metadata for c in nb.cells), "per-cell timestamps were stored"
@@ -149,7 +149,7 @@ def test_stamp_keeps_only_the_name_of_the_data_folder(tmp_path):
 
 def test_the_toc_lists_every_chapter_in_order():
     stems = sorted(p.stem for p in (ROOT / "notebooks").glob("[0-9][0-9]_*.ipynb"))
-    assert book.toc_chapters(ROOT) == stems
+    assert execute.toc_chapters(ROOT) == stems
 
 
 def test_cli_missing_data_dir_is_one_line_and_exit_2(tmp_path, monkeypatch, capsys, no_kernel):
@@ -213,7 +213,7 @@ def test_make_execute_runs_the_stale_chapters_unless_told_otherwise(tmp_path, mo
     monkeypatch.delenv("DANAE_FAST", raising=False)
     monkeypatch.setenv("DANAE_CACHE", str(tmp_path / "cache"))
     ran: list[list[str]] = []
-    monkeypatch.setattr(book, "execute_book", lambda paths, **kw: ran.append([Path(p).stem for p in paths]))
+    monkeypatch.setattr(execute, "execute_book", lambda paths, **kw: ran.append([Path(p).stem for p in paths]))
     assert main(argv) == 0
     assert ran == [expected]
     if fresh and not argv:
@@ -227,7 +227,7 @@ def test_make_execute_with_nothing_stale_runs_nothing(tmp_path, monkeypatch, cap
     stamp(nb, seconds=1.0, data_dir=tmp_path / "data", fast=False)
     nbformat.write(nb, two)
     monkeypatch.chdir(root)
-    monkeypatch.setattr(book, "execute_book", lambda *a, **kw: pytest.fail("nothing is stale"))
+    monkeypatch.setattr(execute, "execute_book", lambda *a, **kw: pytest.fail("nothing is stale"))
     assert main([]) == 0
     assert "nothing to re-execute" in capsys.readouterr().out
 
@@ -244,7 +244,7 @@ def test_cold_runs_in_a_new_cache_that_is_removed_afterwards(tmp_path, monkeypat
         seen.append(Path(cache_dir))
         assert Path(cache_dir).is_dir() and not any(Path(cache_dir).iterdir())
 
-    monkeypatch.setattr(book, "execute_book", fake)
+    monkeypatch.setattr(execute, "execute_book", fake)
     assert main(["--cold"]) == 0
     assert len(seen) == 1 and seen[0] != tmp_path / "warm" and not seen[0].exists()
 
@@ -252,8 +252,8 @@ def test_cold_runs_in_a_new_cache_that_is_removed_afterwards(tmp_path, monkeypat
 def test_network_counts_tell_trained_from_loaded_files():
     before = {"a.pt": 10.0, "b.pt": 10.0, "c.pt": 10.0}
     after = {"a.pt": 10.0, "b.pt": 25.0, "c.pt": 30.0, "d.pt": 31.0, "e.pt": 32.0}   # b, c loaded; d, e new
-    assert book._network_counts(before, after, start=20.0) == (2, 2)
-    assert book._network_counts({}, {}, start=0.0) == (0, 0)
+    assert execute._network_counts(before, after, start=20.0) == (2, 2)
+    assert execute._network_counts({}, {}, start=0.0) == (0, 0)
 
 
 def test_a_run_counts_the_networks_it_trained_and_loaded(tmp_path):
