@@ -401,6 +401,46 @@ def paper_stream(net: Any, x: np.ndarray, n: int, warmup: int) -> dict[str, Any]
                 delay_samples=L - 1, delay_ms=(L - 1) * PERIOD_MS)
 
 
+def with_library_convolutions(net: Any) -> Any:
+    """A copy of ``net`` whose matrix-product convolutions (:mod:`danae_lite.gemm_conv`) are
+    replaced by torch's own ``nn.Conv1d`` / ``nn.ConvTranspose1d`` holding the same parameters
+    (the model runs a plain layer channels-first, transposing around it)."""
+    from torch import nn
+
+    from danae_lite.gemm_conv import ChannelsLastConv1d, ChannelsLastConvTranspose1d
+
+    plain = copy.deepcopy(net)
+    for name, layer in list(plain.named_children()):
+        if isinstance(layer, (ChannelsLastConv1d, ChannelsLastConvTranspose1d)):
+            cls = nn.Conv1d if isinstance(layer, ChannelsLastConv1d) else nn.ConvTranspose1d
+            lib = cls(layer.in_channels, layer.out_channels, layer.kernel_size, padding=layer.padding,
+                      dilation=layer.dilation)
+            lib.load_state_dict(layer.state_dict())
+            setattr(plain, name, lib.to(next(layer.parameters()).device))
+    return plain
+
+
+def bench_predict_paths(result: Any, x: np.ndarray, n: int) -> dict[str, Any]:
+    """``predict`` over ``n`` samples with the package's convolutions and with torch's own, side
+    by side in one run on this CPU (best of 2 each, alternated), and how far apart their
+    predictions are [rad] (float32 rounding: the same sums in another order)."""
+    nets = {"gemm": result.model, "library": with_library_convolutions(result.model)}
+    times: dict[str, list[float]] = {k: [] for k in nets}
+    preds: dict[str, np.ndarray] = {}
+    for _ in range(2):  # alternated, so that a slow minute of the machine hits both
+        for key, net in nets.items():
+            t0 = time.perf_counter()
+            preds[key] = predict(net, x[:n])
+            times[key].append(time.perf_counter() - t0)
+    gemm_s, lib_s = min(times["gemm"]), min(times["library"])
+    diff = float(np.abs(preds["gemm"] - preds["library"]).max())
+    out = dict(samples=n, gemm_seconds=gemm_s, library_seconds=lib_s, gemm_over_library=gemm_s / lib_s,
+               max_abs_diff=diff, faster="library" if lib_s < gemm_s else "gemm")
+    log(f"  predict over {n:,} samples: matrix-product convolutions {gemm_s:.2f} s, torch's own "
+        f"{lib_s:.2f} s (ratio {gemm_s / lib_s:.2f}; predictions within {diff:.1e})")
+    return out
+
+
 def bench_inference(result: Any, x: np.ndarray, y: np.ndarray, sz: dict[str, Any]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     # whole recording, batched, on the training device
@@ -420,6 +460,7 @@ def bench_inference(result: Any, x: np.ndarray, y: np.ndarray, sz: dict[str, Any
     predict(result, x[:n100])
     out["predict_100k"] = dict(samples=n100, seconds=time.perf_counter() - t0, device=result.device)
     log(f"  predict over {n100:,} samples: {out['predict_100k']['seconds']:.2f} s")
+    out["predict_paths"] = bench_predict_paths(result, x, n100)
 
     # streaming with the paper network: one 20-sample window per new sample
     ps = paper_stream(result.model, x, sz["stream_n"], sz["stream_warmup"])
@@ -526,6 +567,8 @@ def summary(r: dict[str, Any]) -> dict[str, Any]:
     s["train_over_matmul_peak"] = th["train_over_peak"]
     s["paper_epoch_50k_s"] = th["epoch_call_seconds"]
     s["predict_100k_s"] = inf["predict_100k"]["seconds"]
+    s["predict_100k_library_conv_s"] = inf["predict_paths"]["library_seconds"]
+    s["predict_gemm_over_library_conv"] = inf["predict_paths"]["gemm_over_library"]
     s["danae_predict_ms_total"] = inf["predict"]["ms_total"]
     s["danae_predict_us_per_sample"] = inf["predict"]["us_per_sample"]
     s["danae_predict_samples"] = inf["predict"]["samples"]
@@ -570,6 +613,10 @@ def table(r: dict[str, Any]) -> str:
                  f"{th['epoch_call_seconds']:.1f} s", f"{th['epoch_steps']} steps, {th['checks']} checks"))
     rows.append((f"predict over {inf['predict_100k']['samples']:,} samples", f"{inf['predict_100k']['seconds']:.2f} s",
                  "every stride-1 window, overlap-averaged"))
+    pp = inf["predict_paths"]
+    rows.append((f"predict, {pp['samples']:,} samples: torch's own convolutions", f"{pp['library_seconds']:.2f} s",
+                 f"matrix products {pp['gemm_seconds']:.2f} s (ratio {pp['gemm_over_library']:.2f}); "
+                 f"predictions within {pp['max_abs_diff']:.0e}"))
     p = inf["predict"]
     rows.append((f"DANAE predict, whole recording ({p['device']})", f"{p['ms_total']:,.0f} ms",
                  f"{p['us_per_sample']:.1f} µs/sample, {p['samples']:,} samples"))
@@ -599,6 +646,7 @@ HEADLINE = [
     ("train_bare_windows_per_s", "bare training step, batch 16 [windows/s]", "{:,.0f}"),
     ("paper_epoch_50k_s", "paper epoch, 50k windows [s]", "{:.1f}"),
     ("predict_100k_s", "predict over 100k samples [s]", "{:.2f}"),
+    ("predict_100k_library_conv_s", "  the same with torch's own convolutions [s]", "{:.2f}"),
     ("danae_infer_ms_per_sample", "paper net streaming [ms/sample]", "{:.2f}"),
     ("denoiser_stream_ms_per_sample", "DANAE-res streaming [ms/sample]", "{:.3f}"),
     ("denoiser_stream_p99_ms", "  p99 [ms/sample]", "{:.3f}"),
