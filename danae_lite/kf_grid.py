@@ -1,6 +1,6 @@
 """The paper's KF run for many settings at once: the tuned KF's grid search in one pass.
 
-:func:`danae_lite.kalman.run_kf` runs one setting with plain ``math`` scalars (about 5 µs a
+:func:`danae_lite.kalman.run_kf` runs one setting with plain ``math`` scalars (1-3 µs a
 sample). A grid search runs hundreds of settings over the same recordings; here the same
 recursion steps every setting together, one NumPy vector of settings per state, so that a
 sample costs about as much for 324 settings as for a dozen.
@@ -32,6 +32,7 @@ MAX_GRID_BYTES = 512 * 2**20
 and setting); a longer recording runs the grid in several passes."""
 _SCORE_ELEMENTS = 4_000_000
 """Samples x settings scored at once (each temporary array: 32 MB)."""
+
 
 def _block_key(cfg: kalman.KFConfig, a: int, b: int, j: int) -> tuple[float, ...]:
     """(p00, p01, p11, q00, q01, q11, r) of the (angle a, bias b) block measured by ``y_j``."""
