@@ -12,7 +12,9 @@ Three layers; imports run one way only, entry points -> research engine -> core
 * :mod:`~danae_lite.simulate`     a deterministic IMU/AHRS simulator with exact ground truth
 * :mod:`~danae_lite.datasets`     the experiments' recordings from a data directory, or the simulator
 * :mod:`~danae_lite.alignment`    sensor-to-body rotation and magnetic north from training data
-* :mod:`~danae_lite.kalman`       the paper's linear attitude Kalman filter
+* :mod:`~danae_lite.kf_model`     the paper's attitude model: state, measurements, settings (:class:`KFConfig`)
+* :mod:`~danae_lite.kf_gains`     its gain and covariance sequence, and the steady state (DARE)
+* :mod:`~danae_lite.kalman`       the paper's linear attitude Kalman filter (one step by the book; the fast loop)
 * :mod:`~danae_lite.metrics`      the paper's error metrics and reported numbers
 * :mod:`~danae_lite.windows`      windows and stitching
 * :mod:`~danae_lite.model`        the DANAE networks; :mod:`~danae_lite.gemm_conv` their convolutions as matrix products
@@ -46,7 +48,7 @@ Three layers; imports run one way only, entry points -> research engine -> core
 * :mod:`~danae_lite.config`       the run settings, read from flags and ``DANAE_*`` variables (only here)
 * :mod:`~danae_lite.book`         the common first cell of every chapter (``setup``)
 * :mod:`~danae_lite.execute`      ``make execute``: re-executes the stale chapters and records each run
-* :mod:`~danae_lite.cli`          ``python -m danae_lite reproduce|leaderboard``
+* :mod:`~danae_lite.cli`          ``python -m danae_lite reproduce|leaderboard``; :mod:`~danae_lite.cli_data` its data flags -> recordings
 """
 from ._version import __version__
 from .angles import ANGLES, angle_diff, euler_to_quat, quat_to_euler, wrap

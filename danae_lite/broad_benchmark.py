@@ -369,9 +369,7 @@ def reference_madgwick(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, f
         ax, ay, az = A_[i]
         if ax != 0.0 or ay != 0.0 or az != 0.0:
             na = 1.0 / sqrt(ax * ax + ay * ay + az * az)
-            ax *= na
-            ay *= na
-            az *= na
+            ax, ay, az = ax * na, ay * na, az * na
             # third row of R(q) = the up axis seen from the body; residuals of the accelerometer
             r31 = 2.0 * (x * z - w * y)
             r32 = 2.0 * (y * z + w * x)
@@ -387,9 +385,7 @@ def reference_madgwick(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, f
             if mrow is not None and (mrow[0] != 0.0 or mrow[1] != 0.0 or mrow[2] != 0.0):
                 mx, my, mz = mrow
                 nm = 1.0 / sqrt(mx * mx + my * my + mz * mz)
-                mx *= nm
-                my *= nm
-                mz *= nm
+                mx, my, mz = mx * nm, my * nm, mz * nm
                 r11 = 1.0 - 2.0 * (y * y + z * z)
                 r12 = 2.0 * (x * y - w * z)
                 r13 = 2.0 * (x * z + w * y)
@@ -416,19 +412,10 @@ def reference_madgwick(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, f
                 dx -= k * s1
                 dy -= k * s2
                 dz -= k * s3
-        w += dw * dt
-        x += dx * dt
-        y += dy * dt
-        z += dz * dt
+        w, x, y, z = w + dw * dt, x + dx * dt, y + dy * dt, z + dz * dt
         nq = 1.0 / sqrt(w * w + x * x + y * y + z * z)
-        w *= nq
-        x *= nq
-        y *= nq
-        z *= nq
-        out[i, 0] = x
-        out[i, 1] = y
-        out[i, 2] = z
-        out[i, 3] = w
+        w, x, y, z = w * nq, x * nq, y * nq, z * nq
+        out[i] = (x, y, z, w)
     return out
 
 
@@ -467,9 +454,7 @@ def reference_mahony(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs:
         ax, ay, az = A_[i]
         if ax != 0.0 or ay != 0.0 or az != 0.0:
             na = 1.0 / sqrt(ax * ax + ay * ay + az * az)
-            ax *= na
-            ay *= na
-            az *= na
+            ax, ay, az = ax * na, ay * na, az * na
             vx = 2.0 * (x * z - w * y)
             vy = 2.0 * (y * z + w * x)
             vz = 1.0 - 2.0 * (x * x + y * y)
@@ -482,9 +467,7 @@ def reference_mahony(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs:
             if mrow is not None and (mrow[0] != 0.0 or mrow[1] != 0.0 or mrow[2] != 0.0):
                 mx, my, mz = mrow
                 nm = 1.0 / sqrt(mx * mx + my * my + mz * mz)
-                mx *= nm
-                my *= nm
-                mz *= nm
+                mx, my, mz = mx * nm, my * nm, mz * nm
                 r11 = 1.0 - 2.0 * (y * y + z * z)
                 r12 = 2.0 * (x * y - w * z)
                 r13 = 2.0 * (x * z + w * y)
@@ -502,31 +485,19 @@ def reference_mahony(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs:
                 ey += mz * ux - mx * uz
                 ez += mx * uy - my * ux
             if ki > 0.0:
-                ix += ki * ex * dt
-                iy += ki * ey * dt
-                iz += ki * ez * dt
-                gx += ix
-                gy += iy
-                gz += iz
+                ix, iy, iz = ix + ki * ex * dt, iy + ki * ey * dt, iz + ki * ez * dt
+                gx, gy, gz = gx + ix, gy + iy, gz + iz
             else:
                 ix = iy = iz = 0.0
-            gx += kp * ex
-            gy += kp * ey
-            gz += kp * ez
+            gx, gy, gz = gx + kp * ex, gy + kp * ey, gz + kp * ez
         hx_, hy_, hz_ = 0.5 * dt * gx, 0.5 * dt * gy, 0.5 * dt * gz
         w, x, y, z = (w - x * hx_ - y * hy_ - z * hz_,
                       x + w * hx_ + y * hz_ - z * hy_,
                       y + w * hy_ - x * hz_ + z * hx_,
                       z + w * hz_ + x * hy_ - y * hx_)
         nq = 1.0 / sqrt(w * w + x * x + y * y + z * z)
-        w *= nq
-        x *= nq
-        y *= nq
-        z *= nq
-        out[i, 0] = x
-        out[i, 1] = y
-        out[i, 2] = z
-        out[i, 3] = w
+        w, x, y, z = w * nq, x * nq, y * nq, z * nq
+        out[i] = (x, y, z, w)
     return out
 
 

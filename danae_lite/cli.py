@@ -43,7 +43,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import re
 import shlex
 import sys
 from collections.abc import Sequence
@@ -56,6 +55,7 @@ from .datasets import (BROAD_TEST_GROUP, BROAD_TRAIN_GROUP, FAST_BROAD_SAMPLES, 
                        FAST_MOTION_RECORDINGS, FAST_SAMPLES,
                        OXIOD_TEST, OXIOD_TRAIN, PAPER_SPLIT_FOLDER, PAPER_SPLIT_TEST, PAPER_SPLIT_TRAIN,
                        TRAIN_FRACTION)
+from .cli_data import UsageError, load_data
 
 if TYPE_CHECKING:
     from .config import RunSettings
@@ -72,7 +72,6 @@ PAPER_EPOCHS: dict[str, int] = {"oxiod": 1, "ucs": 100, "broad": 1}
 """Training epochs stated in the paper (BROAD: the OxIOD setting)."""
 LEADERBOARD_ONLY = ("broad",)
 """Experiments the paper did not run: ``leaderboard`` only, no ``reproduce``."""
-_IMU_RE = re.compile(r"imu(\d+)\.csv")
 
 
 def __getattr__(name: str) -> Any:
@@ -83,10 +82,6 @@ def __getattr__(name: str) -> Any:
 
         return CSV_COLUMNS
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-
-
-class UsageError(Exception):
-    """A mistake in the command line; reported as one line, exit status 2."""
 
 
 # ---------------------------------------------------------------------------------------
@@ -298,191 +293,6 @@ def _one_line(err: BaseException) -> str:
     return text or type(err).__name__
 
 
-# ---------------------------------------------------------------------------------------
-# data
-# ---------------------------------------------------------------------------------------
-def _oxiod_files(items: Sequence[str], flag: str) -> list[Path]:
-    """Expand ``--train``/``--test`` items: a file stays, a folder gives its imuK.csv files by K."""
-    out: list[Path] = []
-    for item in items:
-        p = Path(item).expanduser()
-        if p.is_dir():
-            found = sorted((int(m.group(1)), q) for q in p.iterdir() if (m := _IMU_RE.fullmatch(q.name)))
-            if not found:
-                raise UsageError(f"{flag} {p}: folder holds no OxIOD recordings (imuK.csv with viK.csv beside it)")
-            out.extend(q for _, q in found)
-        elif not p.is_file():
-            raise UsageError(f"{flag} {p}: no such file")
-        else:
-            out.append(p)
-    return out
-
-
-def _ucs_path(items: Sequence[str], flag: str) -> list[Path]:
-    out = []
-    for item in items:
-        p = Path(item).expanduser()
-        if p.is_dir():
-            raise UsageError(f"{flag} {p}: is a folder; give the UCS file itself (full_dataset/imu_adis.txt)")
-        if not p.is_file():
-            raise UsageError(f"{flag} {p}: no such file")
-        out.append(p)
-    return out
-
-
-def _unique_names(train: list[Any], test: list[Any]) -> tuple[list[Any], list[Any]]:
-    """Give distinct recordings distinct names (the KF estimates are keyed by name)."""
-    seen: dict[str, Any] = {}
-    out: list[list[Any]] = [[], []]
-    for side, recs in enumerate((train, test)):
-        for rec in recs:
-            other = seen.get(rec.name)
-            if other is not None and other is not rec:
-                path = rec.meta.get("imu_path") or rec.meta.get("path")
-                rec = rec.slice(None, None, name=f"{rec.name} ({path or len(seen)})")
-            seen[rec.name] = rec
-            out[side].append(rec)
-    return out[0], out[1]
-
-
-def _paper_split(args: argparse.Namespace, name: str, base: Path | None) -> argparse.Namespace:
-    """``--split paper``: the arguments with ``--train``/``--test`` set to the paper's files."""
-    from . import datasets
-
-    if name != "oxiod":
-        raise UsageError(f"--split paper is OxIOD's split; --experiment is {name}")
-    if args.train is not None or args.test is not None:
-        raise UsageError("--split paper chooses the recordings itself; leave out --train/--test")
-    root = datasets.oxiod_root(base) if base is not None else None
-    if root is None:
-        where = f"{base}/oxiod" if base is not None else f"a data directory (--data-dir or ${DATA_ENV})"
-        raise UsageError(f"--split paper needs OxIOD's slow-walking set; no oxiod/ folder in {where}")
-    syn = root.joinpath(*PAPER_SPLIT_FOLDER, "syn")
-    missing = [str(syn / f"{p}{k}.csv") for k in PAPER_SPLIT_TEST + PAPER_SPLIT_TRAIN for p in ("imu", "vi")
-               if not (syn / f"{p}{k}.csv").is_file()]
-    if missing:
-        raise UsageError(f"--split paper: missing {', '.join(missing)} (OxIOD's slow-walking set, original layout)")
-    return argparse.Namespace(**{**vars(args), "train": [str(syn / f"imu{k}.csv") for k in PAPER_SPLIT_TRAIN],
-                                 "test": [str(syn / f"imu{k}.csv") for k in PAPER_SPLIT_TEST]})
-
-
-def load_data(args: argparse.Namespace, settings: RunSettings) -> Any:
-    """Resolve the experiment's recordings from the arguments; returns a datasets.Experiment."""
-    from . import datasets, ucs
-
-    name, fast = args.experiment, settings.fast
-    base = settings.data_dir  # --data-dir, else $DANAE_DATA (resolved, checked) or None
-    if getattr(args, "split", "default") == "paper":
-        args = _paper_split(args, name, base)
-    if args.data_dir is not None and args.train is None and args.test is None:
-        folder = base / name
-        if not folder.is_dir():
-            expected = {"oxiod": folder / "handheld" / "data1" / "syn" / "imuK.csv", "ucs": folder / datasets.UCS_RELPATH,
-                        "broad": folder / "data_mat" / "NN_<name>.mat"}[name]
-            raise UsageError(f"--data-dir {base}: no {name}/ folder with recordings (expected {expected}); "
-                             "omit --data-dir to let the simulator stand in")
-    if args.train is None and args.test is None:
-        return datasets.load_experiment(name, base, fast=fast, verbose=False)
-    if name == "broad":
-        return _broad_files(args, base, fast)
-
-    if name == "ucs":
-        train_p = _ucs_path(args.train, "--train") if args.train else []
-        test_p = _ucs_path(args.test, "--test") if args.test else []
-        single = {p.resolve() for p in train_p + test_p}
-        if len(single) == 1 and (not train_p or not test_p or len(train_p) == len(test_p) == 1):
-            path = train_p[0] if train_p else test_p[0]
-            tr, te = ucs.split_train_test(ucs.load_recording(path), datasets.TRAIN_FRACTION)
-            note = (f"UCS file {path}: first {datasets.TRAIN_FRACTION:.0%} ({len(tr)} samples) train, "
-                    f"last {1 - datasets.TRAIN_FRACTION:.0%} ({len(te)} samples) test.")
-            return datasets.Experiment("ucs", "real", [tr], [te], note)
-        if not train_p or not test_p:
-            flag = "--train" if train_p else "--test"
-            raise UsageError(f"{flag} names {len(train_p or test_p)} UCS files but the other side is missing; "
-                             "give one file (split 80/20) or both --train and --test")
-        train = [ucs.load_recording(p, name=f"ucs/{p.parent.name}/{p.stem}") for p in train_p]
-        test = [ucs.load_recording(p, name=f"ucs/{p.parent.name}/{p.stem}") for p in test_p]
-        train, test = _unique_names(train, test)
-        note = f"UCS files: train {', '.join(map(str, train_p))}; test {', '.join(map(str, test_p))} (each used whole)."
-        return datasets.Experiment("ucs", "real", train, test, note)
-
-    # oxiod with explicit files; a side left out comes from the data directory's defaults
-    syn = None
-    if args.train is None or args.test is None:
-        syn = _default_root(args, base, "oxiod", "recordings").joinpath(*datasets.OXIOD_FOLDER, "syn")
-    train_p = (_oxiod_files(args.train, "--train") if args.train is not None
-               else [syn / f"imu{k}.csv" for k in datasets.OXIOD_TRAIN])
-    test_p = (_oxiod_files(args.test, "--test") if args.test is not None
-              else [syn / f"imu{k}.csv" for k in datasets.OXIOD_TEST])
-    train, test = _unique_names(datasets.load_oxiod_files(train_p, fast), datasets.load_oxiod_files(test_p, fast))
-    cut = datasets.fast_note(fast, FAST_SAMPLES)
-    note = (f"OxIOD files: train {', '.join(r.name for r in train)}; test {', '.join(r.name for r in test)}{cut}.")
-    overlap = {p.resolve() for p in train_p} & {p.resolve() for p in test_p}
-    if overlap:
-        note += f" Warning: {', '.join(map(str, sorted(overlap)))} is used for training and testing."
-    return datasets.Experiment("oxiod", "real", train, test, note)
-
-
-def _default_root(args: argparse.Namespace, base: Path | None, name: str, what: str) -> Path:
-    """``<data dir>/<name>`` for the side of ``--train``/``--test`` left out; UsageError when absent."""
-    from . import datasets
-
-    root = {"oxiod": datasets.oxiod_root, "broad": datasets.broad_root}[name](base) if base is not None else None
-    if root is None:
-        given, missing = ("--test", "--train") if args.train is None else ("--train", "--test")
-        where = f"{base}/{name}" if base is not None else f"a data directory (--data-dir or ${DATA_ENV})"
-        raise UsageError(f"{given} given without {missing}, and no default {what} found in {where}")
-    return root
-
-
-def _broad_trial_files(items: Sequence[str], flag: str) -> list[Path]:
-    """Expand ``--train``/``--test`` items for BROAD: a .mat file stays, a folder gives its trials."""
-    from . import broad
-
-    out: list[Path] = []
-    for item in items:
-        p = Path(item).expanduser()
-        if p.is_dir():
-            found = broad.find_trials(p)  # DataError naming the folder when it holds none
-            out.extend(found)
-        elif not p.is_file():
-            raise UsageError(f"{flag} {p}: no such file")
-        elif p.suffix != ".mat":
-            raise UsageError(f"{flag} {p}: not a BROAD trial (expected NN_<name>.mat)")
-        else:
-            out.append(p)
-    return out
-
-
-def _broad_files(args: argparse.Namespace, base: Path | None, fast: bool) -> Any:
-    """BROAD trials named by ``--train``/``--test``; a side left out takes the data directory's default."""
-    from . import datasets
-
-    default = None
-    if args.train is None or args.test is None:
-        _default_root(args, base, "broad", "trials")
-        default = datasets.load_experiment("broad", base, fast=fast, verbose=False)
-
-    def load(items: Sequence[str] | None, flag: str, fallback: list[Any]) -> tuple[list[Path], list[Any]]:
-        if items is None:
-            return [], fallback
-        paths = _broad_trial_files(items, flag)
-        return paths, datasets.load_broad_files(paths, fast)
-
-    train_p, train = load(args.train, "--train", default.train if default else [])
-    test_p, test = load(args.test, "--test", default.test if default else [])
-    train, test = _unique_names(train, test)
-    cut = datasets.fast_note(fast, FAST_BROAD_SAMPLES)
-    note = f"BROAD trials: train {', '.join(r.name for r in train)}; test {', '.join(r.name for r in test)}{cut}."
-    overlap = {p.resolve() for p in train_p} & {p.resolve() for p in test_p}
-    if overlap:
-        note += f" Warning: {', '.join(map(str, sorted(overlap)))} is used for training and testing."
-    return datasets.Experiment("broad", "real", train, test, note, aligned=True)
-
-
-# ---------------------------------------------------------------------------------------
-# the run
-# ---------------------------------------------------------------------------------------
 def _check_device(device: str | None) -> str:
     import torch
 

@@ -19,7 +19,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from . import kalman
+from . import kalman, kf_gains, kf_model
 from .angles import euler_error_angle, wrap
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -53,10 +53,10 @@ class _Gains:
         keys: dict[tuple[float, ...], int] = {}
         index = np.empty((6, len(configs)), dtype=np.intp)
         for k, cfg in enumerate(configs):
-            for j, (a, b) in enumerate(kalman._BLOCKS):
+            for j, (a, b) in enumerate(kf_model.BLOCKS):
                 u = keys.setdefault(_block_key(cfg, a, b, j), len(keys))
                 index[a, k], index[b, k] = 2 * u, 2 * u + 1
-        blocks = [kalman._block_gains_cached(key, dt, n)[0] for key in keys]
+        blocks = [kf_gains.block_gains(key, dt, n)[0] for key in keys]
         self.m = max(len(K) for K in blocks)
         self.table = np.empty((self.m, 2 * len(blocks)))
         for u, K in enumerate(blocks):
@@ -93,20 +93,20 @@ def run_kf_grid(rec: "Recording", configs: Sequence[kalman.KFConfig]) -> NDArray
     """
     from_truth, wrap_yaw = _check(configs)
     dt = configs[0].dt if configs[0].dt is not None else rec.dt
-    kalman._check_dt(dt)
+    kf_model.check_dt(dt)
     dt = float(dt)
-    arrays = kalman._sensor_arrays(gyro=rec.gyro, acc=rec.acc, mag=rec.mag)
+    arrays = kalman.sensor_arrays(gyro=rec.gyro, acc=rec.acc, mag=rec.mag)
     n, k = len(arrays["gyro"]), len(configs)
     gains = _Gains(configs, dt, n)
     tilt = kalman.accel_tilt(arrays["acc"])
-    mu = kalman._unit_rows(arrays["mag"], "mag")
+    mu = kf_model.unit_rows(arrays["mag"], "mag")
     g = arrays["gyro"]
     rows = zip(*(c.tolist() for c in (g[:, 0], g[:, 1], g[:, 2], tilt[:, 0], tilt[:, 1], mu[:, 0], mu[:, 1],
                                       mu[:, 2])))
     x0 = np.array([cfg.x0 for cfg in configs], dtype=float).T  # (6, K)
     f, bf, h, bh, s, bs = (x0[i].copy() for i in range(6))
     if from_truth:  # the step-0 rate and heading formulas use the true roll/pitch (as run_kf)
-        pf, ph = (np.full(k, v) for v in kalman._initial_tilt(rec.euler[0], configs[0]))
+        pf, ph = (np.full(k, v) for v in kalman.initial_tilt(rec.euler[0], configs[0]))
     else:
         pf, ph = x0[0].copy(), x0[2].copy()
     euler = np.empty((n, 3, k))

@@ -7,7 +7,7 @@ run too, only later). Imports under ``if TYPE_CHECKING:`` are left out: they nev
 Layers (a module not listed is core):
 
 * **entry points**: settings (:mod:`danae_lite.config`), chapter setup and execution
-  (:mod:`danae_lite.book`), re-execution (:mod:`danae_lite.execute`), the command line (:mod:`danae_lite.cli`, ``__main__``);
+  (:mod:`danae_lite.book`), re-execution (:mod:`danae_lite.execute`), the command line (:mod:`danae_lite.cli`, :mod:`danae_lite.cli_data`, ``__main__``);
 * **research engine** (chapters 5 onward): the method protocol and registry, the classical and
   learned methods, the library filters, the BROAD metric and its reference filters, the
   leaderboard, folds, the denoiser, streaming;
@@ -22,7 +22,7 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "danae_lite"
 SETTINGS = "config"
-ENTRY = {"config", "book", "execute", "cli", "__main__"}
+ENTRY = {"config", "book", "execute", "cli", "cli_data", "__main__"}
 RESEARCH = {"baselines", "kf_grid", "kf_offline", "methods", "registry", "features", "variants", "leaderboard", "crossval", "denoiser",
             "streaming", "filters", "broad_benchmark"}
 

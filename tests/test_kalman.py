@@ -471,30 +471,30 @@ def test_filter_input_validation():
 def test_remembered_blocks_give_exactly_the_gains_of_a_fresh_run():
     """The block recursion is remembered per (P0, Q, R, dt) block and serves other lengths:
     every answer must equal, bit for bit, what the recursion gives from scratch."""
-    from danae_lite import kalman
+    from danae_lite import kf_gains
 
-    cfg = kalman.KFConfig(Q=[1e-4, 1e-6, 1e-4, 1e-6, 1e-3, 1e-6])
+    cfg = KFConfig(Q=[1e-4, 1e-6, 1e-4, 1e-6, 1e-3, 1e-6])
     dt = 0.01
 
     def fresh(n_max):
-        kalman._GAIN_CACHE.clear()
-        kalman._BLOCK_CACHE.clear()
-        return kalman.gain_sequence(dt, cfg, n_max=n_max, method="block")
+        kf_gains._GAIN_CACHE.clear()
+        kf_gains._BLOCK_CACHE.clear()
+        return kf_gains.gain_sequence(dt, cfg, n_max=n_max, method="block")
 
     full = fresh(100_000)
     assert full.converged and 100 < len(full) < 100_000
     for n_max in (7, len(full) - 1, len(full), len(full) + 50):
         expected = fresh(n_max)
-        kalman._GAIN_CACHE.clear()  # keep the remembered blocks of a longer run
-        kalman._BLOCK_CACHE.clear()
-        kalman.gain_sequence(dt, cfg, n_max=100_000, method="block")
-        kalman._GAIN_CACHE.clear()
-        got = kalman.gain_sequence(dt, cfg, n_max=n_max, method="block")
+        kf_gains._GAIN_CACHE.clear()  # keep the remembered blocks of a longer run
+        kf_gains._BLOCK_CACHE.clear()
+        kf_gains.gain_sequence(dt, cfg, n_max=100_000, method="block")
+        kf_gains._GAIN_CACHE.clear()
+        got = kf_gains.gain_sequence(dt, cfg, n_max=n_max, method="block")
         assert got.converged == expected.converged == (n_max >= len(full))
         np.testing.assert_array_equal(got.K, expected.K)
         np.testing.assert_array_equal(got.P_post, expected.P_post)
     # a short run first, then a longer request: computed again, not served from the short one
     fresh(7)
-    kalman._GAIN_CACHE.clear()
-    again = kalman.gain_sequence(dt, cfg, n_max=100_000, method="block")
+    kf_gains._GAIN_CACHE.clear()
+    again = kf_gains.gain_sequence(dt, cfg, n_max=100_000, method="block")
     np.testing.assert_array_equal(again.K, full.K)
