@@ -163,7 +163,7 @@ def kernel_environment(*, data_dir: Path | None, cache: Path | None, fast: bool,
     return env
 
 
-FAST_MAX_STEPS = 100
+FAST_MAX_STEPS = 50
 """Fast mode: cap on optimiser steps per network."""
 FAST_EPOCHS = 2
 """Fast mode: cap on the epochs per network."""

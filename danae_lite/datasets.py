@@ -52,8 +52,8 @@ UCS_RELPATH = Path("full_dataset") / "imu_adis.txt"
 """Location of the ADIS file inside ``<data dir>/ucs``."""
 TRAIN_FRACTION = 0.8
 """Share of the UCS recording used for training (the first part)."""
-FAST_SAMPLES = 2000
-"""Samples kept per real OxIOD recording in fast mode (20 s at 100 Hz)."""
+FAST_SAMPLES = 1500
+"""Samples kept per real OxIOD recording in fast mode (15 s at 100 Hz)."""
 FAST_MOTION_RECORDINGS = 3
 """Recordings kept per OxIOD motion in fast mode (:func:`load_motions`): leave-one-out folds
 then still train on two recordings, as the methods that hold out training recordings need."""
