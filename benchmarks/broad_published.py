@@ -1,9 +1,9 @@
 """Reproduce the BROAD authors' published figures: Madgwick and Mahony on every trial.
 
-Runs the benchmark's two filters (:func:`danae_lite.broad.madgwick` at beta 0.12 and
-:func:`danae_lite.broad.mahony` at k_P 0.74, k_I 0.0012: the authors' common best parameters)
+Runs the benchmark's two filters (:func:`danae_lite.research.broad.madgwick` at beta 0.12 and
+:func:`danae_lite.research.broad.mahony` at k_P 0.74, k_I 0.0012: the authors' common best parameters)
 on every trial found under ``<data dir>/broad/data_mat``, scores them with the benchmark's own
-metric (:func:`danae_lite.broad_benchmark.evaluate`: total, heading and inclination RMSE over the movement
+metric (:func:`danae_lite.research.broad_benchmark.evaluate`: total, heading and inclination RMSE over the movement
 phases) and prints, per trial and filter, ours beside the published figure and the relative
 difference ``ours / published - 1``; then the largest relative difference per filter, the mean
 over the trials present (the published group ``all_trials`` is the mean over all 39) and the
@@ -37,7 +37,7 @@ try:
 except ImportError:  # run from a checkout without `pip install -e .`
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from danae_lite import broad, broad_benchmark
+from danae_lite.research import broad, broad_benchmark
 from danae_lite.config import data_dir as resolve_data_dir
 
 SHORT = {"total_rmse_deg": "total", "heading_rmse_deg": "heading", "inclination_rmse_deg": "incl"}

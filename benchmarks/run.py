@@ -3,8 +3,8 @@
 Everything runs on one simulated recording (the simulator's hand-held scenario, 1000 s at
 100 Hz = 100,000 samples; no real data needed), in one process:
 
-1. **Filters** -- samples/s of the paper's KF (:func:`danae_lite.kalman.run_kf`, authors'
-   setting, best of 5) beside the field libraries of :mod:`danae_lite.filters`: Fusion and
+1. **Filters** -- samples/s of the paper's KF (:func:`danae_lite.core.kalman.run_kf`, authors'
+   setting, best of 5) beside the field libraries of :mod:`danae_lite.research.filters`: Fusion and
    VQF (C/C++, whole recording, best of 5), Madgwick and Mahony (``ahrs``, pure Python:
    first 20,000 samples, best of 3). Target: KF >= 250,000 samples/s (PASS/MISS is printed;
    a miss never fails the run).
@@ -13,16 +13,16 @@ Everything runs on one simulated recording (the simulator's hand-held scenario, 
    timed: ``TrainResult.seconds / steps``), on the CPU and, when available, on CUDA.
 3. **Training throughput against the physical limit** -- windows/s of the bare network step
    (``DanaePaper`` forward + backward + Adam, batch 16, pre-cut windows, nothing else) beside
-   :func:`danae_lite.train.train` with the paper's settings on 50,000 windows, validation
+   :func:`danae_lite.core.train.train` with the paper's settings on 50,000 windows, validation
    included (``train_loop_windows_per_s``; their ratio is the loop's overhead), the time of
    that whole paper-settings epoch (``paper_epoch_50k_s``), the arithmetic rate it achieves
    (``train_gflops``: 3x the forward FLOPs per window, counted from the layer shapes) and
    the machine's peak for a 2048x2048 float32 matmul on the same threads (``matmul_gflops``).
-4. **DANAE inference** -- whole-recording batched :func:`danae_lite.train.predict` (ms and
+4. **DANAE inference** -- whole-recording batched :func:`danae_lite.core.train.predict` (ms and
    µs per sample) and the streaming cost per sample: the paper network run once per new
    sample on the latest 20-sample window (batch 1, ``torch.no_grad``, 1 thread) -- this is
-   ``danae_infer_ms_per_sample`` -- and, when :mod:`danae_lite.streaming` is present, the
-   latency of :class:`~danae_lite.streaming.StreamingDanae` with a small causal network.
+   ``danae_infer_ms_per_sample`` -- and, when :mod:`danae_lite.research.streaming` is present, the
+   latency of :class:`~danae_lite.research.streaming.StreamingDanae` with a small causal network.
    Both are compared with the 10 ms sample period at 100 Hz.
 
 Usage::
@@ -59,12 +59,12 @@ except ImportError:  # run from a checkout without `pip install -e .`
 
 import torch
 
-from danae_lite import filters
-from danae_lite.seeding import default_device
-from danae_lite.kalman import KFConfig, run_kf
-from danae_lite.simulate import simulate
-from danae_lite.model import DanaePaper
-from danae_lite.train import TrainConfig, _default_threads, predict, train
+from danae_lite.research import filters
+from danae_lite.core.seeding import default_device
+from danae_lite.core.kalman import KFConfig, run_kf
+from danae_lite.core.simulate import simulate
+from danae_lite.core.model import DanaePaper
+from danae_lite.core.train import TrainConfig, _default_threads, predict, train
 
 KF_TARGET = 250_000.0
 """Samples per second the KF should reach (informative only)."""
@@ -402,12 +402,12 @@ def paper_stream(net: Any, x: np.ndarray, n: int, warmup: int) -> dict[str, Any]
 
 
 def with_library_convolutions(net: Any) -> Any:
-    """A copy of ``net`` whose matrix-product convolutions (:mod:`danae_lite.gemm_conv`) are
+    """A copy of ``net`` whose matrix-product convolutions (:mod:`danae_lite.core.gemm_conv`) are
     replaced by torch's own ``nn.Conv1d`` / ``nn.ConvTranspose1d`` holding the same parameters
     (the model runs a plain layer channels-first, transposing around it)."""
     from torch import nn
 
-    from danae_lite.gemm_conv import ChannelsLastConv1d, ChannelsLastConvTranspose1d
+    from danae_lite.core.gemm_conv import ChannelsLastConv1d, ChannelsLastConvTranspose1d
 
     plain = copy.deepcopy(net)
     for name, layer in list(plain.named_children()):
@@ -471,14 +471,14 @@ def bench_inference(result: Any, x: np.ndarray, y: np.ndarray, sz: dict[str, Any
 
     # streaming with a causal network, when the streaming module offers it
     try:
-        streaming = importlib.import_module("danae_lite.streaming")
-        from danae_lite.model import ARCHITECTURES
+        streaming = importlib.import_module("danae_lite.research.streaming")
+        from danae_lite.core.model import ARCHITECTURES
         ok = hasattr(streaming, "StreamingDanae") and hasattr(streaming, "measure_latency") and "causal" in ARCHITECTURES
     except ImportError:
         ok = False
     out["causal_stream"] = {}
     if not ok:
-        log("  causal streaming: danae_lite.streaming (StreamingDanae, measure_latency) not available; skipped")
+        log("  causal streaming: danae_lite.research.streaming (StreamingDanae, measure_latency) not available; skipped")
         return out
     n_fit = min(len(x), 20_000)
     for hidden in sz["causal_hidden"]:
@@ -503,13 +503,13 @@ def bench_inference(result: Any, x: np.ndarray, y: np.ndarray, sz: dict[str, Any
 
 
 def bench_denoiser_stream(sz: dict[str, Any]) -> dict[str, Any]:
-    """Per-sample latency of the recommended denoiser (:class:`danae_lite.denoiser.DenoiserStream`)
+    """Per-sample latency of the recommended denoiser (:class:`danae_lite.research.denoiser.DenoiserStream`)
     behind VQF, fitted briefly on simulated recordings: one sample's input features, the causal
     network's step and the gated correction, timed together; and its agreement with the batch output."""
-    from danae_lite.datasets import Experiment
-    from danae_lite.denoiser import DanaeRes, DenoiserStream
-    from danae_lite.leaderboard import run_leaderboard
-    from danae_lite.simulate import simulate
+    from danae_lite.core.datasets import Experiment
+    from danae_lite.research.denoiser import DanaeRes, DenoiserStream
+    from danae_lite.research.leaderboard import run_leaderboard
+    from danae_lite.core.simulate import simulate
 
     recs = [simulate("handheld", duration=60.0, seed=s, name=f"bench-{s}") for s in range(3)]
     method = DanaeRes("vqf")

@@ -5,7 +5,7 @@ It fixes the things every chapter relies on, in one place:
 * fast mode (``DANAE_FAST``) — fewer epochs and shorter recordings for CI;
 * the real-data directory (``DANAE_DATA``) — or the simulator when it is absent;
 * the seeds of python, numpy and torch;
-* the plotting style of the book (:mod:`danae_lite.plots`);
+* the plotting style of the book (:mod:`danae_lite.core.plots`);
 * torch's CPU threads: torch's own default (every physical core, or ``OMP_NUM_THREADS``).
 
 The command that re-executes the chapters and stores their outputs is
@@ -14,13 +14,13 @@ The command that re-executes the chapters and stores their outputs is
 from __future__ import annotations
 
 from .config import DEFAULT_SEED, RunSettings
-from .seeding import seed_everything
+from .core.seeding import seed_everything
 
 
 def setup(seed: int = DEFAULT_SEED, *, verbose: bool = True) -> RunSettings:
     """Apply the book's common settings and return them (:class:`~danae_lite.config.RunSettings`
     from ``DANAE_FAST``, ``DANAE_DATA``, ``DANAE_CACHE`` and ``DANAE_JOBS``)."""
-    from . import plots
+    from .core import plots
 
     plots.use_style()
     seed_everything(seed)

@@ -1,17 +1,17 @@
 """Command line: ``python -m danae_lite reproduce`` runs the paper's experiment end to end;
-``python -m danae_lite leaderboard`` runs every method of :mod:`danae_lite.baselines` on the
-same split (:func:`danae_lite.leaderboard.run_leaderboard`) and writes ``leaderboard.csv``,
+``python -m danae_lite leaderboard`` runs every method of :mod:`danae_lite.research.baselines` on the
+same split (:func:`danae_lite.research.leaderboard.run_leaderboard`) and writes ``leaderboard.csv``,
 ``leaderboard.json``, ``leaderboard.png`` and the grid searches into ``--out``; with
 ``--experiment broad`` (the BROAD benchmark, leaderboard only) also ``broad_trials.csv``, the
 benchmark's total, heading and inclination RMSE [deg] per method and test trial. Both share the
 data flags below.
 
-The command parses arguments, resolves the data (:mod:`~danae_lite.datasets`,
-:mod:`~danae_lite.oxiod`, :mod:`~danae_lite.ucs`) and calls
-:func:`danae_lite.pipeline.reproduce`, the same function the book's chapters call: the
+The command parses arguments, resolves the data (:mod:`~danae_lite.core.datasets`,
+:mod:`~danae_lite.core.oxiod`, :mod:`~danae_lite.core.ucs`) and calls
+:func:`danae_lite.core.pipeline.reproduce`, the same function the book's chapters call: the
 paper's KF on every recording -> one DANAE per angle and seed -> the paper's metrics
-(:mod:`~danae_lite.metrics`) -> the paper's figure (:mod:`~danae_lite.figures`). It writes
-into ``--out`` (:meth:`danae_lite.pipeline.Reproduction.write`, plus ``run.json``):
+(:mod:`~danae_lite.core.metrics`) -> the paper's figure (:mod:`~danae_lite.core.figures`). It writes
+into ``--out`` (:meth:`danae_lite.core.pipeline.Reproduction.write`, plus ``run.json``):
 
 ``metrics.json``
     ``{"experiment", "data", "train", "test", "seeds", "kf", "danae", "paper", "seconds"}``;
@@ -29,7 +29,7 @@ into ``--out`` (:meth:`danae_lite.pipeline.Reproduction.write`, plus ``run.json`
 ``run.json``
     How the run was made: the command, the data note, fast mode, training settings, device.
 ``models/`` (only with ``--save-models``)
-    One checkpoint per angle and seed (:func:`danae_lite.train.save`).
+    One checkpoint per angle and seed (:func:`danae_lite.core.train.save`).
 
 Metrics are computed on all samples of all test recordings taken together, with errors
 wrapped to [-pi, pi). DANAE numbers use the overlap-average reconstruction (every sample is
@@ -51,16 +51,17 @@ from typing import TYPE_CHECKING, Any
 
 from .config import (CACHE_ENV, CACHE_GB_ENV, DATA_ENV, DEFAULT_CACHE_GB, FAST_ENV, FAST_EPOCHS, FAST_MAX_STEPS, FAST_SEEDS,
                      FULL_SEEDS, JOBS_ENV)
-from .datasets import (BROAD_TEST_GROUP, BROAD_TRAIN_GROUP, FAST_BROAD_SAMPLES, FAST_BROAD_TRIALS, FAST_DURATION,
-                       FAST_MOTION_RECORDINGS, FAST_SAMPLES,
-                       OXIOD_TEST, OXIOD_TRAIN, PAPER_SPLIT_FOLDER, PAPER_SPLIT_TEST, PAPER_SPLIT_TRAIN,
-                       TRAIN_FRACTION)
+from .core.datasets import (FAST_DURATION, FAST_SAMPLES, OXIOD_TEST, OXIOD_TRAIN, PAPER_SPLIT_FOLDER,
+                            PAPER_SPLIT_TEST, PAPER_SPLIT_TRAIN, TRAIN_FRACTION)
 from .cli_data import UsageError, load_data
+from .research import broad as broad_data
+from .research import oxiod_motions
+from .research.oxiod_motions import FAST_MOTION_RECORDINGS
 
 if TYPE_CHECKING:
     from .config import RunSettings
-    from .pipeline import Reproduction
-    from .train import TrainConfig
+    from .core.pipeline import Reproduction
+    from .core.train import TrainConfig
 
 __all__ = ["main", "build_parser"]
 
@@ -75,10 +76,10 @@ LEADERBOARD_ONLY = ("broad",)
 
 
 def __getattr__(name: str) -> Any:
-    """``CSV_COLUMNS`` is :data:`danae_lite.pipeline.CSV_COLUMNS`, imported on first use (the
+    """``CSV_COLUMNS`` is :data:`danae_lite.core.pipeline.CSV_COLUMNS`, imported on first use (the
     pipeline imports torch, which ``--help`` does not need)."""
     if name == "CSV_COLUMNS":
-        from .pipeline import CSV_COLUMNS
+        from .core.pipeline import CSV_COLUMNS
 
         return CSV_COLUMNS
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
@@ -114,7 +115,7 @@ data selection:
     oxiod: <dir>/oxiod/handheld/data1/syn/imuK.csv + viK.csv; train {", ".join(f"imu{k}" for k in OXIOD_TRAIN)}; test {", ".join(f"imu{k}" for k in OXIOD_TEST)}
     ucs:   <dir>/ucs/full_dataset/imu_adis.txt; first {TRAIN_FRACTION:.0%} train, last {1 - TRAIN_FRACTION:.0%} test
     broad: <dir>/broad/data_mat/NN_<name>.mat + trials.json (leaderboard only); train the
-           "{BROAD_TRAIN_GROUP}" trials, test the "{BROAD_TEST_GROUP}" ones
+           "{broad_data.TRAIN_GROUP}" trials, test the "{broad_data.TEST_GROUP}" ones
   With neither --data-dir nor ${DATA_ENV}, the deterministic simulator stands in (the output
   and metrics.json say "simulated"). A --data-dir without the experiment's folder is an
   error; a ${DATA_ENV} without it lets the simulator stand in, as in the notebooks.
@@ -135,7 +136,7 @@ data selection:
 
 fast mode (--fast or {FAST_ENV}=1):
   OxIOD recordings are cut to their first {FAST_SAMPLES} samples (at most {FAST_MOTION_RECORDINGS} per motion with --folds);
-  BROAD trials to their first {FAST_BROAD_SAMPLES} samples (by default the first {FAST_BROAD_TRIALS} of each group);
+  BROAD trials to their first {broad_data.FAST_SAMPLES} samples (by default the first {broad_data.FAST_TRIALS} of each group);
   simulated ones to {FAST_DURATION["handheld"]:g} s (handheld) or {FAST_DURATION["underwater"]:g} s (underwater).
   The default epochs are capped at {FAST_EPOCHS} and each network at {FAST_MAX_STEPS} optimiser steps (--max-steps overrides).
 
@@ -202,7 +203,7 @@ def build_parser() -> argparse.ArgumentParser:
 
 def _method_name(name: str) -> str:
     """``--methods`` value check: a leaderboard method or ``danae-res[<filter>]``."""
-    from .baselines import is_method_name
+    from .research.baselines import is_method_name
 
     if not is_method_name(name):
         raise argparse.ArgumentTypeError(
@@ -211,7 +212,7 @@ def _method_name(name: str) -> str:
 
 
 def _method_names() -> list[str]:
-    from .baselines import METHODS
+    from .research.baselines import METHODS
 
     return list(METHODS)
 
@@ -273,8 +274,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help(sys.stderr)
         return 2
     args.argv = list(sys.argv[1:] if argv is None else argv)
-    from .recording import DataError
-    from .checkpoints import CheckpointError
+    from .core.recording import DataError
+    from .core.checkpoints import CheckpointError
 
     try:
         return leaderboard(args) if args.command == "leaderboard" else reproduce(args)
@@ -296,7 +297,7 @@ def _one_line(err: BaseException) -> str:
 def _check_device(device: str | None) -> str:
     import torch
 
-    from .seeding import default_device
+    from .core.seeding import default_device
 
     try:
         dev = torch.device(default_device(device))
@@ -319,7 +320,7 @@ def _train_config(args: argparse.Namespace, settings: RunSettings) -> TrainConfi
     then ``--epochs``/``--max-steps``/``--threads`` as given."""
     from dataclasses import replace
 
-    from .train import TrainConfig
+    from .core.train import TrainConfig
 
     config = settings.train_config(TrainConfig(epochs=PAPER_EPOCHS[args.experiment]))
     given = {k: v for k, v in (("epochs", args.epochs), ("max_steps", args.max_steps),
@@ -351,7 +352,7 @@ def _prepare(args: argparse.Namespace) -> tuple[RunSettings, Path, Any, TrainCon
     matplotlib.use("Agg")
     import torch
 
-    from . import pipeline
+    from .core import pipeline
 
     exp = load_data(args, settings)
     if args.threads:
@@ -362,8 +363,8 @@ def _prepare(args: argparse.Namespace) -> tuple[RunSettings, Path, Any, TrainCon
 
 
 def reproduce(args: argparse.Namespace) -> int:
-    """Run the ``reproduce`` subcommand (:func:`danae_lite.pipeline.reproduce`); returns the exit status."""
-    from . import pipeline
+    """Run the ``reproduce`` subcommand (:func:`danae_lite.core.pipeline.reproduce`); returns the exit status."""
+    from .core import pipeline
 
     if args.experiment in LEADERBOARD_ONLY:
         raise UsageError(f"--experiment {args.experiment}: the paper has no such experiment to reproduce; "
@@ -390,12 +391,12 @@ def reproduce(args: argparse.Namespace) -> int:
 
 
 def leaderboard(args: argparse.Namespace) -> int:
-    """Run the ``leaderboard`` subcommand (:func:`danae_lite.leaderboard.run_leaderboard`)."""
+    """Run the ``leaderboard`` subcommand (:func:`danae_lite.research.leaderboard.run_leaderboard`)."""
     import time
 
     import pandas as pd
 
-    from .leaderboard import run_leaderboard
+    from .research.leaderboard import run_leaderboard
 
     if args.folds:
         return folds(args)
@@ -429,12 +430,12 @@ def leaderboard(args: argparse.Namespace) -> int:
 
 
 def folds(args: argparse.Namespace) -> int:
-    """``leaderboard --folds``: :func:`danae_lite.crossval.run_splits` on the experiment's protocol."""
+    """``leaderboard --folds``: :func:`danae_lite.research.crossval.run_splits` on the experiment's protocol."""
     import time
 
     import pandas as pd
 
-    from . import crossval, datasets
+    from .research import crossval
 
     if args.experiment == "ucs":
         raise UsageError("--folds: ucs is one recording, there is nothing to hold out; use oxiod or broad")
@@ -443,7 +444,7 @@ def folds(args: argparse.Namespace) -> int:
     settings, out_dir, _, config = _prepare(args)
     methods = args.methods or _method_names()
     if args.experiment == "oxiod":
-        motions = datasets.load_motions(settings.data_dir, fast=settings.fast, verbose=False)
+        motions = oxiod_motions.load(settings.data_dir, fast=settings.fast, verbose=False)
         recs = motions.recordings
         splits = [s for m, r in recs.items() if len(r) > 1 for s in crossval.leave_one_out(r, m)]
         others = {m: r for m, r in recs.items() if m != "handheld"}
@@ -481,8 +482,8 @@ def folds(args: argparse.Namespace) -> int:
 
 
 def _save_models(rep: Reproduction, folder: Path) -> list[Path]:
-    """One checkpoint per angle and seed (:func:`danae_lite.train.save`)."""
-    from .train import save
+    """One checkpoint per angle and seed (:func:`danae_lite.core.train.save`)."""
+    from .core.train import save
 
     exp = rep.experiment
     return [save(res, folder / f"danae_{angle}_seed{seed}.pt",
@@ -494,7 +495,7 @@ def _write_run_json(args: argparse.Namespace, rep: Reproduction, fast: bool, dev
     """``run.json``: the command, data note, mode, settings and the figure shown."""
     import torch
 
-    from .figures import PAPER_FIGURES
+    from .core.figures import PAPER_FIGURES
 
     exp = rep.experiment
     spec = PAPER_FIGURES[exp.name]
@@ -516,7 +517,7 @@ def _print_summary(rep: Reproduction) -> None:
     """Print the metric table [rad] and the RMSE reductions [%] next to the paper's."""
     import pandas as pd
 
-    from .metrics import reduction_pct
+    from .core.metrics import reduction_pct
 
     result = rep.to_json()
     shown = rep.metrics_frame().set_index(["method", "angle"])

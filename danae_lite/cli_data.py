@@ -1,5 +1,5 @@
 """The command line's data flags -> recordings: ``--experiment``, ``--data-dir``, ``--train`` /
-``--test`` and ``--split`` resolved to a :class:`~danae_lite.datasets.Experiment` (used by
+``--test`` and ``--split`` resolved to a :class:`~danae_lite.core.datasets.Experiment` (used by
 :mod:`danae_lite.cli`; every mistake is a :class:`UsageError` naming the flag and the file)."""
 from __future__ import annotations
 
@@ -10,8 +10,8 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .config import DATA_ENV
-from .datasets import (FAST_BROAD_SAMPLES, FAST_SAMPLES, PAPER_SPLIT_FOLDER, PAPER_SPLIT_TEST,
-                       PAPER_SPLIT_TRAIN)
+from .core.datasets import FAST_SAMPLES, PAPER_SPLIT_FOLDER, PAPER_SPLIT_TEST, PAPER_SPLIT_TRAIN
+from .research import broad as broad_data
 
 if TYPE_CHECKING:
     from .config import RunSettings
@@ -71,7 +71,7 @@ def _unique_names(train: list[Any], test: list[Any]) -> tuple[list[Any], list[An
 
 def _paper_split(args: argparse.Namespace, name: str, base: Path | None) -> argparse.Namespace:
     """``--split paper``: the arguments with ``--train``/``--test`` set to the paper's files."""
-    from . import datasets
+    from .core import datasets
 
     if name != "oxiod":
         raise UsageError(f"--split paper is OxIOD's split; --experiment is {name}")
@@ -92,7 +92,7 @@ def _paper_split(args: argparse.Namespace, name: str, base: Path | None) -> argp
 
 def load_data(args: argparse.Namespace, settings: RunSettings) -> Any:
     """Resolve the experiment's recordings from the arguments; returns a datasets.Experiment."""
-    from . import datasets, ucs
+    from .core import datasets, ucs
 
     name, fast = args.experiment, settings.fast
     base = settings.data_dir  # --data-dir, else $DANAE_DATA (resolved, checked) or None
@@ -106,6 +106,8 @@ def load_data(args: argparse.Namespace, settings: RunSettings) -> Any:
             raise UsageError(f"--data-dir {base}: no {name}/ folder with recordings (expected {expected}); "
                              "omit --data-dir to let the simulator stand in")
     if args.train is None and args.test is None:
+        if name == "broad":
+            return broad_data.load_experiment(base, fast=fast, verbose=False)
         return datasets.load_experiment(name, base, fast=fast, verbose=False)
     if name == "broad":
         return _broad_files(args, base, fast)
@@ -149,9 +151,9 @@ def load_data(args: argparse.Namespace, settings: RunSettings) -> Any:
 
 def _default_root(args: argparse.Namespace, base: Path | None, name: str, what: str) -> Path:
     """``<data dir>/<name>`` for the side of ``--train``/``--test`` left out; UsageError when absent."""
-    from . import datasets
+    from .core import datasets
 
-    root = {"oxiod": datasets.oxiod_root, "broad": datasets.broad_root}[name](base) if base is not None else None
+    root = {"oxiod": datasets.oxiod_root, "broad": broad_data.root}[name](base) if base is not None else None
     if root is None:
         given, missing = ("--test", "--train") if args.train is None else ("--train", "--test")
         where = f"{base}/{name}" if base is not None else f"a data directory (--data-dir or ${DATA_ENV})"
@@ -161,13 +163,11 @@ def _default_root(args: argparse.Namespace, base: Path | None, name: str, what: 
 
 def _broad_trial_files(items: Sequence[str], flag: str) -> list[Path]:
     """Expand ``--train``/``--test`` items for BROAD: a .mat file stays, a folder gives its trials."""
-    from . import broad
-
     out: list[Path] = []
     for item in items:
         p = Path(item).expanduser()
         if p.is_dir():
-            found = broad.find_trials(p)  # DataError naming the folder when it holds none
+            found = broad_data.find_trials(p)  # DataError naming the folder when it holds none
             out.extend(found)
         elif not p.is_file():
             raise UsageError(f"{flag} {p}: no such file")
@@ -180,23 +180,23 @@ def _broad_trial_files(items: Sequence[str], flag: str) -> list[Path]:
 
 def _broad_files(args: argparse.Namespace, base: Path | None, fast: bool) -> Any:
     """BROAD trials named by ``--train``/``--test``; a side left out takes the data directory's default."""
-    from . import datasets
+    from .core import datasets
 
     default = None
     if args.train is None or args.test is None:
         _default_root(args, base, "broad", "trials")
-        default = datasets.load_experiment("broad", base, fast=fast, verbose=False)
+        default = broad_data.load_experiment(base, fast=fast, verbose=False)
 
     def load(items: Sequence[str] | None, flag: str, fallback: list[Any]) -> tuple[list[Path], list[Any]]:
         if items is None:
             return [], fallback
         paths = _broad_trial_files(items, flag)
-        return paths, datasets.load_broad_files(paths, fast)
+        return paths, broad_data.load_files(paths, fast)
 
     train_p, train = load(args.train, "--train", default.train if default else [])
     test_p, test = load(args.test, "--test", default.test if default else [])
     train, test = _unique_names(train, test)
-    cut = datasets.fast_note(fast, FAST_BROAD_SAMPLES)
+    cut = datasets.fast_note(fast, broad_data.FAST_SAMPLES)
     note = f"BROAD trials: train {', '.join(r.name for r in train)}; test {', '.join(r.name for r in test)}{cut}."
     overlap = {p.resolve() for p in train_p} & {p.resolve() for p in test_p}
     if overlap:

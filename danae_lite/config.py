@@ -35,10 +35,10 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from .datasets import existing_dir
-from .networks import NetworkCache
-from .seeding import default_device
-from .train import TrainConfig
+from .core.datasets import existing_dir
+from .core.networks import NetworkCache
+from .core.seeding import default_device
+from .core.train import TrainConfig
 
 
 FAST_ENV = "DANAE_FAST"
@@ -179,7 +179,7 @@ class RunSettings:
 
     Fast mode shrinks the run in one place: :meth:`train_config` caps every network at
     :data:`FAST_MAX_STEPS` optimiser steps and :data:`FAST_EPOCHS` epochs, the default seeds
-    become :data:`FAST_SEEDS`, and :func:`danae_lite.datasets.load_experiment` shortens the
+    become :data:`FAST_SEEDS`, and :func:`danae_lite.core.datasets.load_experiment` shortens the
     recordings (its ``FAST_*`` constants).
     """
 
@@ -225,7 +225,7 @@ class RunSettings:
         return fast if self.fast else full
 
     def train_config(self, base: "TrainConfig | None" = None, **overrides: Any) -> "TrainConfig":
-        """``base`` (default the paper's :class:`~danae_lite.train.TrainConfig`) with
+        """``base`` (default the paper's :class:`~danae_lite.core.train.TrainConfig`) with
         ``overrides``, this run's device, and in fast mode at most :data:`FAST_EPOCHS` epochs
         and :data:`FAST_MAX_STEPS` steps per network."""
         cfg = replace(base or TrainConfig(), **overrides)

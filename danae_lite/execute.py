@@ -63,6 +63,30 @@ def code_hash(nb: Mapping[str, Any]) -> str:
     return hashlib.sha256(CELL_SEPARATOR.join(code).encode("utf-8")).hexdigest()
 
 
+DATA_FOLDERS = ("oxiod", "ucs", "broad")
+"""The dataset folders of a data directory that the chapters read (see :mod:`danae_lite.core.datasets`)."""
+
+
+def data_fingerprint(data_dir: str | os.PathLike[str] | None) -> str:
+    """SHA-256 of the data the chapters can read, as a hex string ("" for ``None``: the simulator).
+
+    Every file under the data directory's :data:`DATA_FOLDERS`, in sorted order, enters with its
+    path relative to the data directory and its content, so renaming, adding, removing or editing
+    a recording changes it; where the directory lives does not. Reading the ~120 MB of the book's
+    datasets takes well under a second.
+    """
+    if data_dir is None:
+        return ""
+    base = Path(data_dir).expanduser().resolve()
+    h = hashlib.sha256()
+    for folder in DATA_FOLDERS:
+        for f in sorted(p for p in (base / folder).rglob("*") if p.is_file()):
+            h.update(f.relative_to(base).as_posix().encode("utf-8") + b"\0")
+            with open(f, "rb") as fh:
+                h.update(hashlib.file_digest(fh, "sha256").digest())
+    return h.hexdigest()
+
+
 def execution_record(nb: Mapping[str, Any]) -> dict[str, Any] | None:
     """The record of the run that produced a notebook's outputs.
 
@@ -81,15 +105,16 @@ def execution_record(nb: Mapping[str, Any]) -> dict[str, Any] | None:
     return dict(record) if isinstance(record, Mapping) else None
 
 
-def stale_reason(nb: Mapping[str, Any], stem: str) -> str | None:
+def stale_reason(nb: Mapping[str, Any], stem: str, data_sha256: str | None = None) -> str | None:
     """Why a chapter's stored outputs cannot be trusted to match its code, or None when they can.
 
     The book renders the stored outputs without executing anything, so they must come from a
     full-mode, real-data run (:func:`execution_record`) of the code cells as they are now
-    (:func:`code_hash`), by this version of danae_lite. Markdown cells do not enter: editing
-    prose keeps a chapter fresh.
+    (:func:`code_hash`), by this version of danae_lite, with a record of the data it read
+    (:func:`data_fingerprint`); given ``data_sha256`` (the fingerprint of the data at hand), also
+    of that data. Markdown cells do not enter: editing prose keeps a chapter fresh.
     """
-    from ._version import __version__
+    from .core._version import __version__
 
     rerun = (f"re-execute it with real data: DANAE_DATA=/path/to/data make execute "
              f"(or: python -m danae_lite.execute --only {stem})")
@@ -106,18 +131,23 @@ def stale_reason(nb: Mapping[str, Any], stem: str) -> str | None:
         problems.append(f"its outputs come from {record.get('data')} data, not the real data")
     if record.get("fast") is not False:
         problems.append("its outputs come from a fast-mode run")
+    if not record.get("data_sha256"):
+        problems.append("its record carries no fingerprint of the data it read (data_sha256)")
+    elif data_sha256 and record["data_sha256"] != data_sha256:
+        problems.append("the data it read differs from the data at hand (data_sha256)")
     return f"{stem}: {'; '.join(problems)}; {rerun}" if problems else None
 
 
-def stale_chapters(paths: Sequence[Path]) -> list[Path]:
+def stale_chapters(paths: Sequence[Path], data_sha256: str | None = None) -> list[Path]:
     """The chapters among ``paths`` whose stored outputs are stale (:func:`stale_reason`), in order."""
     import nbformat
 
-    return [p for p in paths if stale_reason(nbformat.read(p, as_version=4), p.stem) is not None]
+    return [p for p in paths if stale_reason(nbformat.read(p, as_version=4), p.stem, data_sha256) is not None]
 
 
 def stamp(nb: MutableMapping[str, Any], *, seconds: float, data_dir: str | os.PathLike[str] | None,
-          fast: bool, executed: datetime | None = None, networks: tuple[int, int] | None = None) -> dict[str, Any]:
+          fast: bool, executed: datetime | None = None, networks: tuple[int, int] | None = None,
+          data_sha256: str = "") -> dict[str, Any]:
     """Write the record of a run into ``nb.metadata["danae"]["execution"]`` and return it.
 
     Parameters
@@ -136,18 +166,20 @@ def stamp(nb: MutableMapping[str, Any], *, seconds: float, data_dir: str | os.Pa
     networks
         (networks trained, networks found in the cache) by the run, when known: a run that
         found none in the cache ran cold, one that trained none ran warm.
+    data_sha256
+        :func:`data_fingerprint` of ``data_dir`` ("" for the simulator).
 
     Returns
     -------
     dict
         The record: ``code_sha256`` (:func:`code_hash`), ``danae_lite_version``, ``data``
-        (``"real"`` or ``"simulated"``), ``data_dir``, ``fast``, ``seconds``, ``executed``,
+        (``"real"`` or ``"simulated"``), ``data_dir``, ``data_sha256``, ``fast``, ``seconds``, ``executed``,
         ``python`` and ``torch`` versions, and with ``networks`` given ``networks_trained`` and
         ``networks_cached``.
     """
     from importlib.metadata import PackageNotFoundError, version
 
-    from ._version import __version__
+    from .core._version import __version__
 
     try:
         torch_version = version("torch")
@@ -159,6 +191,7 @@ def stamp(nb: MutableMapping[str, Any], *, seconds: float, data_dir: str | os.Pa
         "danae_lite_version": __version__,
         "data": "real" if data_dir else "simulated",
         "data_dir": Path(data_dir).name if data_dir else "",
+        "data_sha256": data_sha256 if data_dir else "",
         "fast": bool(fast),
         "seconds": round(float(seconds), 1),
         "executed": when.isoformat(timespec="seconds"),
@@ -192,7 +225,7 @@ def _write_atomically(nb: Any, target: Path) -> None:
 
 def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLike[str],
                      env: Mapping[str, str], data_dir: Path | None, fast: bool, timeout: float | None,
-                     networks: Path | None = None) -> dict[str, Any]:
+                     networks: Path | None = None, data_sha256: str = "") -> dict[str, Any]:
     """Execute one notebook in a fresh ``python3`` kernel and write it, with its record, to ``out_path``.
 
     The kernel runs in the notebook's own folder (as Jupyter Book runs it) with exactly the
@@ -208,8 +241,9 @@ def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLik
         Where to write the executed notebook (nbformat v4); may be ``path``.
     env
         The whole environment of the kernel (:func:`~danae_lite.config.kernel_environment`).
-    data_dir, fast
-        The data directory and fast mode that ``env`` gives the kernel, for the record (:func:`stamp`).
+    data_dir, fast, data_sha256
+        The data directory and fast mode that ``env`` gives the kernel, and the data's
+        :func:`data_fingerprint`, for the record (:func:`stamp`).
     timeout
         Limit for each cell [s]; ``None`` for no limit.
     networks
@@ -261,7 +295,7 @@ def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLik
         raise BookExecutionError(f"{path.name}: {where} failed: {detail}") from exc
     seconds = time.perf_counter() - start
     counts = _network_counts(before, _network_files(networks), started) if networks is not None else None
-    record = stamp(nb, seconds=seconds, data_dir=data_dir, fast=fast, networks=counts)
+    record = stamp(nb, seconds=seconds, data_dir=data_dir, fast=fast, networks=counts, data_sha256=data_sha256)
     _write_atomically(nb, out_path)
     return record
 
@@ -277,6 +311,17 @@ def _refusal(data_dir: Path | None, fast: bool) -> str | None:
             f"hold a full-mode run on real data, and {replaced} outputs would replace them; "
             "pass --out DIR to write executed copies elsewhere, or --data-dir DIR (and no --fast) "
             "to re-execute them in place")
+
+
+def _kernel_setup(data: Path | None, cache: Path | None, *, fast: bool, jobs: int,
+                  cache_gb: float) -> tuple[dict[str, str], Path | None]:
+    """The kernels' environment (:func:`~danae_lite.config.kernel_environment`, inline figures, a
+    fixed hash seed) and this mode's network cache folder (created; None without a cache)."""
+    if cache is not None:
+        cache.mkdir(parents=True, exist_ok=True)
+    env = kernel_environment(data_dir=data, cache=cache, fast=fast, n_jobs=jobs, max_gb=cache_gb)
+    env.update({"MPLBACKEND": INLINE_BACKEND, "PYTHONHASHSEED": "0"})
+    return env, cache / ("fast" if fast else "full") if cache is not None else None
 
 
 def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str | os.PathLike[str] | None,
@@ -338,25 +383,20 @@ def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str |
     in_place = out is None or any(p.parent == out for p in paths)  # "copies" into their own folder
     if in_place and (why := _refusal(data, fast)):
         raise BookExecutionError(why)
-
     cache = Path(cache_dir).expanduser().resolve() if cache_dir is not None else None
-    if cache is not None:
-        cache.mkdir(parents=True, exist_ok=True)
-    env = kernel_environment(data_dir=data, cache=cache, fast=fast, n_jobs=jobs, max_gb=cache_gb)
-    env.update({"MPLBACKEND": INLINE_BACKEND, "PYTHONHASHSEED": "0"})
-
+    env, networks = _kernel_setup(data, cache, fast=fast, jobs=jobs, cache_gb=cache_gb)
     if out is not None and not in_place:
         out.mkdir(parents=True, exist_ok=True)
         if progress:
             print(f"writing executed copies to {out}; the notebooks in place are left unchanged")
+    fingerprint = data_fingerprint(data)
     rows: list[dict[str, Any]] = []
-    networks = cache / ("fast" if fast else "full") if cache is not None else None
     bar = tqdm(paths, desc="chapters", unit="nb", disable=not progress, leave=False)
     for path in bar:
         bar.set_postfix_str(path.stem)
         target = out / path.name if out is not None else path
         record = execute_notebook(path, out_path=target, env=env, data_dir=data, fast=fast, timeout=timeout,
-                                  networks=networks)
+                                  networks=networks, data_sha256=fingerprint)
         seconds, trained, cached = (record.get(k) for k in ("seconds", "networks_trained", "networks_cached"))
         rows.append({"notebook": path.name, "seconds": seconds, "networks_trained": trained,
                      "networks_cached": cached, "data": "real" if data else "simulated", "fast": fast,
@@ -388,7 +428,7 @@ def _network_files(folder: Path | None) -> dict[str, float]:
 def _network_counts(before: Mapping[str, float], after: Mapping[str, float], start: float) -> tuple[int, int]:
     """(networks trained, networks found in the cache) by a run that started at ``start``: the
     files it added, and the older files it loaded (loading marks a file used, see
-    :class:`~danae_lite.networks.NetworkCache`)."""
+    :class:`~danae_lite.core.networks.NetworkCache`)."""
     trained = sum(1 for name in after if name not in before)
     cached = sum(1 for name, mtime in after.items() if name in before and mtime >= start)
     return trained, cached
@@ -432,12 +472,13 @@ examples:
 """
 
 
-def _stale_or_say_so(paths: Sequence[Path]) -> list[Path]:
-    """The stale chapters among ``paths``; prints which chapters are fresh and left as they are."""
+def _stale_or_say_so(paths: Sequence[Path], data_sha256: str) -> list[Path]:
+    """The stale chapters among ``paths`` (``data_sha256``: the data at hand, see
+    :func:`stale_reason`); prints which chapters are fresh and left as they are."""
     missing = [str(p) for p in paths if not p.is_file()]
     if missing:
         raise BookExecutionError(f"no such notebook: {', '.join(missing)}")
-    stale = stale_chapters(paths)
+    stale = stale_chapters(paths, data_sha256)
     fresh = [p.stem for p in paths if p not in stale]
     if fresh:
         print(f"up to date, left as they are: {', '.join(fresh)} (--all re-executes them too)")
@@ -509,11 +550,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                                          f"expected one of {', '.join(chapters)}")
             chapters = [c for c in chapters if c in wanted]
         paths = [folder / f"{c}.ipynb" for c in chapters]
+        settings = RunSettings.from_env(fast=args.fast, data=args.data_dir, cache=args.cache, n_jobs=args.jobs)
         if not (args.only or args.all or args.out):
-            paths = _stale_or_say_so(paths)
+            paths = _stale_or_say_so(paths, data_fingerprint(settings.data_dir))
             if not paths:
                 return 0
-        settings = RunSettings.from_env(fast=args.fast, data=args.data_dir, cache=args.cache, n_jobs=args.jobs)
         with tempfile.TemporaryDirectory(prefix="danae_cold_cache_") as cold:
             execute_book(paths, data_dir=settings.data_dir,
                          cache_dir=Path(cold) if args.cold else settings.cache_root, cache_gb=settings.cache_gb,

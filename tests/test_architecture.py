@@ -1,17 +1,17 @@
 """The package's shape: imports run one way (entry points -> research engine -> core), no import
-circles, and only the settings module reads the ``DANAE_*`` variables.
+circles, every module in the package map, and only the settings module reads the ``DANAE_*``
+variables.
 
 Imports are read from the source with :mod:`ast`, including those made inside functions (they
 run too, only later). Imports under ``if TYPE_CHECKING:`` are left out: they never run.
 
-Layers (a module not listed is core):
+A module's layer is its folder, so a new file cannot sit in the wrong layer by accident:
 
-* **entry points**: settings (:mod:`danae_lite.config`), chapter setup and execution
-  (:mod:`danae_lite.book`), re-execution (:mod:`danae_lite.execute`), the command line (:mod:`danae_lite.cli`, :mod:`danae_lite.cli_data`, ``__main__``);
-* **research engine** (chapters 5 onward): the method protocol and registry, the classical and
-  learned methods, the library filters, the BROAD metric and its reference filters, the
-  leaderboard, folds, the denoiser, streaming;
-* **core** (what chapters 1-4 need): everything else.
+* ``danae_lite/core/``: what chapters 1-4 need (layer 0);
+* ``danae_lite/research/``: the research engine of chapters 5 onward (layer 1);
+* ``danae_lite/`` itself: the entry points, settings (:mod:`danae_lite.config`), chapter setup
+  (:mod:`danae_lite.book`), re-execution (:mod:`danae_lite.execute`) and the command line
+  (:mod:`danae_lite.cli`, ``__main__``) (layer 2).
 """
 from __future__ import annotations
 
@@ -22,14 +22,26 @@ import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "danae_lite"
 SETTINGS = "config"
-ENTRY = {"config", "book", "execute", "cli", "cli_data", "__main__"}
-RESEARCH = {"baselines", "kf_grid", "kf_offline", "methods", "registry", "features", "variants", "leaderboard", "crossval", "denoiser",
-            "streaming", "filters", "broad_benchmark"}
+LAYERS = ("core", "research")
+"""The layer folders, lowest first; modules directly in the package are the entry points."""
 
 
 def layer(module: str) -> int:
-    """0 core, 1 research engine, 2 entry points."""
-    return 2 if module in ENTRY else 1 if module in RESEARCH else 0
+    """0 core, 1 research engine, 2 entry points, from the module's folder (``core.kalman`` -> 0)."""
+    folder = module.split(".")[0]
+    return LAYERS.index(folder) if folder in LAYERS else 2
+
+
+def modules(package: Path) -> dict[str, Path]:
+    """Module name relative to the package (``core.kalman``, ``cli``; a folder's ``__init__`` is
+    the folder's name) -> its file, for every ``.py`` file under ``package``, recursively."""
+    out = {}
+    for path in sorted(package.rglob("*.py")):
+        parts = path.relative_to(package).with_suffix("").parts
+        if parts[-1] == "__init__":
+            parts = parts[:-1] or ("__init__",)
+        out[".".join(parts)] = path
+    return out
 
 
 def _type_checking_nodes(tree: ast.AST) -> set[int]:
@@ -41,25 +53,40 @@ def _type_checking_nodes(tree: ast.AST) -> set[int]:
     return skip
 
 
+def _targets(node: ast.Import | ast.ImportFrom, module: str, is_package: bool, package: str) -> list[str]:
+    """The candidate module names (relative to the package) an import statement may load."""
+    if isinstance(node, ast.Import):
+        return [a.name[len(package) + 1:] for a in node.names if a.name.startswith(package + ".")]
+    if node.level:
+        here = module.split(".") if is_package else module.split(".")[:-1]
+        if module == "__init__":
+            here = []
+        base = here[: len(here) - (node.level - 1)]
+    elif (node.module or "").split(".")[0] == package:
+        base = []
+    else:
+        return []
+    mod = (node.module or "").split(".")
+    if not node.level:
+        mod = mod[1:]
+    stem = [*base, *[m for m in mod if m]]
+    return [".".join(stem)] + [".".join([*stem, a.name]) for a in node.names]
+
+
 def package_imports(package: Path) -> dict[str, set[str]]:
-    """Module (file stem) -> the package's modules it imports, anywhere in its source."""
-    modules = {p.stem for p in package.glob("*.py")}
+    """Module -> the package's modules it imports, anywhere in its source (folders' ``__init__``
+    count as modules: importing ``danae_lite.core`` runs ``core/__init__.py``)."""
+    found = modules(package)
     graph: dict[str, set[str]] = {}
-    for path in sorted(package.glob("*.py")):
+    for name, path in found.items():
         tree = ast.parse(path.read_text(encoding="utf-8"))
         skip = _type_checking_nodes(tree)
         deps: set[str] = set()
         for node in ast.walk(tree):
             if id(node) in skip or not isinstance(node, (ast.Import, ast.ImportFrom)):
                 continue
-            if isinstance(node, ast.ImportFrom) and node.level == 1:
-                deps.update([node.module.split(".")[0]] if node.module else [a.name for a in node.names])
-            elif isinstance(node, ast.ImportFrom) and (node.module or "").startswith(package.name):
-                rest = node.module.split(".")[1:]
-                deps.update(rest[:1] if rest else [a.name for a in node.names])
-            elif isinstance(node, ast.Import):
-                deps.update(a.name.split(".")[1] for a in node.names if a.name.startswith(package.name + "."))
-        graph[path.stem] = {d for d in deps if d in modules and d != path.stem}
+            deps.update(_targets(node, name, path.name == "__init__.py", package.name))
+        graph[name] = {d for d in deps if d in found and d != name}
     return graph
 
 
@@ -100,7 +127,7 @@ def circles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 def upward_imports(graph: dict[str, set[str]]) -> list[str]:
     """Imports from a lower layer into a higher one, e.g. ``core kalman -> research filters``."""
-    names = ("core", "research", "entry")
+    names = (*LAYERS, "entry")
     return [f"{names[layer(m)]} {m} -> {names[layer(d)]} {d}"
             for m, deps in sorted(graph.items()) for d in sorted(deps) if layer(d) > layer(m)]
 
@@ -114,7 +141,7 @@ def env_reads(package: Path) -> list[str]:
     """``module:line`` of every read of a ``DANAE_*`` variable (by literal name or by a ``*_ENV``
     constant) through ``os.environ[...]``, ``os.environ.get(...)`` or ``os.getenv(...)``."""
     out = []
-    for path in sorted(package.glob("*.py")):
+    for name, path in modules(package).items():
         tree = ast.parse(path.read_text(encoding="utf-8"))
         for node in ast.walk(tree):
             key = None
@@ -130,7 +157,7 @@ def env_reads(package: Path) -> list[str]:
             literal = isinstance(key, ast.Constant) and str(key.value).startswith("DANAE_")
             constant = ast.unparse(key).split(".")[-1].endswith("_ENV")
             if literal or constant:
-                out.append(f"{path.stem}:{node.lineno}")
+                out.append(f"{name}:{node.lineno}")
     return out
 
 
@@ -147,32 +174,56 @@ def test_only_the_settings_module_reads_the_environment():
 
 
 def test_every_module_is_in_the_package_map():
-    """``danae_lite/__init__.py`` names every module (the map a newcomer reads first)."""
+    """``danae_lite/__init__.py`` names every module by its full name, under its layer's heading
+    (the map a newcomer reads first)."""
     text = (PACKAGE / "__init__.py").read_text(encoding="utf-8")
-    missing = [p.stem for p in PACKAGE.glob("*.py")
-               if not p.stem.startswith("_") and f"danae_lite.{p.stem}`" not in text]
-    assert missing == []
+    sections = {"core": text.index("**Core**"), "research": text.index("**Research engine**"),
+                "": text.index("**Entry points**")}
+    bounds = sorted(sections.values()) + [len(text)]
+    misplaced = []
+    for name in modules(PACKAGE):
+        if name.split(".")[-1].startswith("_") or name in LAYERS:
+            continue
+        start = sections[name.split(".")[0] if "." in name else ""]
+        part = text[start:bounds[bounds.index(start) + 1]]
+        if f"danae_lite.{name}`" not in part:
+            misplaced.append(name)
+    assert misplaced == []
+
+
+def test_layers_are_the_folders():
+    """Every module sits in a layer folder or is one of the few entry points; the layer folders
+    hold nothing else (no deeper folders to hide a module in)."""
+    entry = {n for n in modules(PACKAGE) if "." not in n}
+    assert entry == {"__init__", "__main__", "book", "cli", "cli_data", "config", "execute", *LAYERS}
+    assert all(len(n.split(".")) <= 2 for n in modules(PACKAGE))
+    assert {n.split(".")[0] for n in modules(PACKAGE) if "." in n} == set(LAYERS)
 
 
 @pytest.fixture
 def toy_package(tmp_path: Path) -> Path:
     pkg = tmp_path / "danae_lite"
-    pkg.mkdir()
-    (pkg / "__init__.py").write_text("")
-    (pkg / "kalman.py").write_text("def f():\n    from .leaderboard import g\n")  # core -> research, late
-    (pkg / "leaderboard.py").write_text("from . import cli\n")  # research -> entry
-    (pkg / "cli.py").write_text("from danae_lite.kalman import f\n")
-    (pkg / "windows.py").write_text(
-        "import os\nfrom typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from .cli import x\n"
+    for folder in (pkg, pkg / "core", pkg / "research"):
+        folder.mkdir()
+        (folder / "__init__.py").write_text("")
+    (pkg / "core" / "kalman.py").write_text("def f():\n    from ..research.leaderboard import g\n")  # core -> research, late
+    (pkg / "research" / "leaderboard.py").write_text("from .. import cli\n")  # research -> entry
+    (pkg / "cli.py").write_text("from danae_lite.core.kalman import f\n")
+    (pkg / "core" / "windows.py").write_text(
+        "import os\nfrom typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from ..cli import x\n"
         "a = os.environ.get('DANAE_FAST')\nb = os.environ[DATA_ENV]\nc = os.getenv('HOME')\n")
+    (pkg / "core" / "angles.py").write_text("from . import windows\nfrom .windows import a\n")  # same layer
     return pkg
 
 
 def test_the_checks_find_what_they_look_for(toy_package: Path):
     """The checks are not vacuous: on a toy package they find a circle made by an import inside a
-    function, the upward imports, and the two environment reads (not HOME, not TYPE_CHECKING)."""
+    function, the upward imports (the layer read from the folder), and the two environment reads
+    (not HOME, not TYPE_CHECKING); an import within a layer is neither."""
     graph = package_imports(toy_package)
-    assert graph["windows"] == set()  # the TYPE_CHECKING import does not count
-    assert circles(graph) == [["cli", "kalman", "leaderboard"]]
-    assert upward_imports(graph) == ["core kalman -> research leaderboard", "research leaderboard -> entry cli"]
-    assert env_reads(toy_package) == ["windows:5", "windows:6"]
+    assert graph["core.windows"] == set()  # the TYPE_CHECKING import does not count
+    assert graph["core.angles"] == {"core", "core.windows"}
+    assert circles(graph) == [["cli", "core.kalman", "research.leaderboard"]]
+    assert upward_imports(graph) == ["core core.kalman -> research research.leaderboard",
+                                     "research research.leaderboard -> entry cli"]
+    assert env_reads(toy_package) == ["core.windows:5", "core.windows:6"]

@@ -16,7 +16,8 @@ from nbformat.v4 import new_code_cell, new_markdown_cell, new_notebook
 
 import danae_lite
 from danae_lite import execute
-from danae_lite.execute import BookExecutionError, code_hash, execute_book, execution_record, main, stamp
+from danae_lite.execute import (BookExecutionError, code_hash, data_fingerprint, execute_book, execution_record, main,
+                                stamp)
 
 ROOT = Path(__file__).resolve().parents[1]
 
@@ -142,9 +143,31 @@ def test_stamp_keeps_only_the_name_of_the_data_folder(tmp_path):
     assert (record["data"], record["data_dir"], record["fast"]) == ("real", "data", False)
     assert record["seconds"] == 12.3
     assert "networks_trained" not in record  # not counted
-    counted = stamp(nb, seconds=1.0, data_dir=None, fast=True, networks=(7, 6))
+    counted = stamp(nb, seconds=1.0, data_dir=None, fast=True, networks=(7, 6), data_sha256="ignored")
     assert (counted["networks_trained"], counted["networks_cached"]) == (7, 6)
+    assert counted["data_sha256"] == ""  # the simulator has no data to fingerprint
     assert str(tmp_path) not in json.dumps(nb.metadata)
+
+
+def test_the_data_fingerprint_follows_the_content_and_names_not_the_location(tmp_path):
+    import hashlib
+
+    def make(root: Path, text: bytes = b"1,2,3\n") -> Path:
+        (root / "oxiod" / "handheld").mkdir(parents=True)
+        (root / "oxiod" / "handheld" / "imu2.csv").write_bytes(text)
+        (root / "notes.txt").write_text("not a dataset folder")
+        return root
+
+    a = data_fingerprint(make(tmp_path / "a"))
+    expected = hashlib.sha256(b"oxiod/handheld/imu2.csv\0" + hashlib.sha256(b"1,2,3\n").digest()).hexdigest()
+    assert a == expected  # path relative to the data folder, then the content's digest
+    assert data_fingerprint(make(tmp_path / "b")) == a  # another location, the same data
+    assert data_fingerprint(make(tmp_path / "c", b"1,2,4\n")) != a  # one byte edited
+    (tmp_path / "b" / "oxiod" / "handheld" / "imu2.csv").rename(tmp_path / "b" / "oxiod" / "handheld" / "imu3.csv")
+    assert data_fingerprint(tmp_path / "b") != a  # renamed
+    (tmp_path / "a" / "notes.txt").write_text("edited")
+    assert data_fingerprint(tmp_path / "a") == a  # outside the dataset folders
+    assert data_fingerprint(None) == ""
 
 
 def test_the_toc_lists_every_chapter_in_order():
@@ -193,7 +216,7 @@ def _book_root(tmp_path: Path, fresh: bool) -> Path:
     write_notebook(root / "notebooks" / "02_two.ipynb", "# 2. Two", "print(2)")
     if fresh:
         nb = nbformat.read(one, as_version=4)
-        stamp(nb, seconds=1.0, data_dir=tmp_path / "data", fast=False)
+        stamp(nb, seconds=1.0, data_dir=tmp_path / "data", fast=False, data_sha256=data_fingerprint(tmp_path / "data"))
         nbformat.write(nb, one)
     return root
 
@@ -224,9 +247,11 @@ def test_make_execute_with_nothing_stale_runs_nothing(tmp_path, monkeypatch, cap
     root = _book_root(tmp_path, fresh=True)
     two = root / "notebooks" / "02_two.ipynb"
     nb = nbformat.read(two, as_version=4)
-    stamp(nb, seconds=1.0, data_dir=tmp_path / "data", fast=False)
+    stamp(nb, seconds=1.0, data_dir=tmp_path / "data", fast=False, data_sha256=data_fingerprint(tmp_path / "data"))
     nbformat.write(nb, two)
+    (tmp_path / "data").mkdir()
     monkeypatch.chdir(root)
+    monkeypatch.setenv("DANAE_DATA", str(tmp_path / "data"))  # the data the records were stamped with
     monkeypatch.setattr(execute, "execute_book", lambda *a, **kw: pytest.fail("nothing is stale"))
     assert main([]) == 0
     assert "nothing to re-execute" in capsys.readouterr().out
@@ -260,7 +285,7 @@ def test_a_run_counts_the_networks_it_trained_and_loaded(tmp_path):
     src = write_notebook(
         tmp_path / "nbs" / "nets.ipynb", "# Networks",
         "from danae_lite.book import setup\ncfg = setup(verbose=False)",
-        "import numpy as np\nfrom danae_lite import networks\nfrom danae_lite.train import TrainConfig\n"
+        "import numpy as np\nfrom danae_lite.core import networks\nfrom danae_lite.core.train import TrainConfig\n"
         "x = [np.sin(np.linspace(0.0, 20.0, 300))]\n"
         "nets = networks.train_networks({'roll': x}, {'roll': x}, TrainConfig(max_steps=2, num_threads=1), (0, 1),"
         " cache=cfg.cache)",

@@ -10,11 +10,13 @@ import pandas as pd
 import pytest
 from scipy.spatial.transform import Rotation
 
-from danae_lite import broad, cli, datasets, registry
-from danae_lite.angles import quat_to_euler
-from danae_lite.baselines import make_method
-from danae_lite.leaderboard import TRIAL_COLUMNS, run_leaderboard
-from danae_lite.variants import DanaeOn
+from danae_lite.research import broad, registry
+from danae_lite import cli
+from danae_lite.core import datasets
+from danae_lite.core.angles import quat_to_euler
+from danae_lite.research.baselines import make_method
+from danae_lite.research.leaderboard import TRIAL_COLUMNS, run_leaderboard
+from danae_lite.research.variants import DanaeOn
 
 
 def _rotated_truth(rec, axis: str, deg: float) -> np.ndarray:
@@ -25,7 +27,7 @@ def _rotated_truth(rec, axis: str, deg: float) -> np.ndarray:
 
 @pytest.fixture(scope="module")
 def sim_board():
-    exp = datasets.simulated_experiment("broad", fast=True, verbose=False)
+    exp = broad.simulated_experiment(fast=True, verbose=False)
     return run_leaderboard(exp, methods=["paper_kf", "riann"], seeds=(0,), cache=None, progress=False)
 
 
@@ -122,13 +124,13 @@ def broad_dir() -> Path:
 
 @pytest.mark.realdata
 def test_default_split_trains_on_undisturbed_and_tests_on_disturbed_trials(broad_dir):
-    exp = datasets.load_experiment("broad", broad_dir, fast=True, verbose=False)
+    exp = broad.load_experiment(broad_dir, fast=True, verbose=False)
     index = broad.trial_index(broad_dir)
     have = {p.stem for p in broad.find_trials(broad_dir)}
-    keep = datasets.FAST_BROAD_TRIALS  # fast mode: the first trials of each group
+    keep = broad.FAST_TRIALS  # fast mode: the first trials of each group
     assert [r.name for r in exp.train] == [t for t in index.members("undisturbed") if t in have][:keep]
     assert [r.name for r in exp.test] == [t for t in index.members("disturbed") if t in have][:keep]
-    assert all(len(r) == datasets.FAST_BROAD_SAMPLES and r.meta["movement"].any() for r in exp.train + exp.test)
+    assert all(len(r) == broad.FAST_SAMPLES and r.meta["movement"].any() for r in exp.train + exp.test)
     assert exp.aligned  # BROAD's sensor axes are its body axes and its heading is magnetic north
 
 

@@ -12,7 +12,9 @@ import pandas as pd
 import pytest
 
 from conftest import synthetic_oxiod, write_rows, write_ucs
-from danae_lite import cli, datasets, metrics
+from danae_lite import cli
+from danae_lite.core import datasets, metrics
+from danae_lite.research import oxiod_motions
 
 # tiny runs: one seed, five optimiser steps, one torch thread, CPU
 TINY = ["--fast", "--seeds", "0", "--max-steps", "5", "--threads", "1", "--device", "cpu"]
@@ -232,7 +234,7 @@ def test_leaderboard_folds_simulated(tmp_path: Path, capsys: pytest.CaptureFixtu
                              "--out", str(out)], capsys)
     assert code == 0, err
     rows = pd.read_csv(out / "folds.csv")
-    motions = {m: min(len(v[2]), datasets.FAST_MOTION_RECORDINGS) for m, v in datasets.OXIOD_MOTIONS.items()}
+    motions = {m: min(len(v[2]), oxiod_motions.FAST_MOTION_RECORDINGS) for m, v in oxiod_motions.OXIOD_MOTIONS.items()}
     in_motion = rows[rows.protocol == "in-motion"]
     assert in_motion.split.nunique() == sum(motions.values())  # one split per held-out recording
     transfer = rows[rows.protocol == "transfer"]

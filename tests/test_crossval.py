@@ -1,12 +1,13 @@
-"""danae_lite.crossval: splits never train on what they test; rows, spreads and paired differences
+"""danae_lite.research.crossval: splits never train on what they test; rows, spreads and paired differences
 are the plain computations on the per-recording predictions."""
 import numpy as np
 import pandas as pd
 import pytest
 
-from danae_lite import crossval, datasets, metrics, simulate
-from danae_lite.leaderboard import run_leaderboard
-from danae_lite.train import TrainConfig
+from danae_lite.research import crossval
+from danae_lite.core import datasets, metrics, simulate
+from danae_lite.research.leaderboard import run_leaderboard
+from danae_lite.core.train import TrainConfig
 
 
 @pytest.fixture(scope="module")

@@ -4,9 +4,10 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from danae_lite import DataError, datasets
-from danae_lite.datasets import Experiment, load_experiment, oxiod_root, ucs_file
-from danae_lite.oxiod import load_recording
+from danae_lite import DataError
+from danae_lite.core import datasets
+from danae_lite.core.datasets import Experiment, load_experiment, oxiod_root, ucs_file
+from danae_lite.core.oxiod import load_recording
 
 from conftest import write_ucs
 
@@ -86,7 +87,7 @@ def test_library_functions_never_read_the_environment(monkeypatch, tmp_oxiod):
 
 
 def test_simulated_oxiod_when_no_data(capsys):
-    from danae_lite.simulate import simulate
+    from danae_lite.core.simulate import simulate
 
     exp = load_experiment("oxiod", fast=True, seed=3)
     assert (exp.name, exp.data) == ("oxiod", "simulated")
@@ -111,7 +112,7 @@ def test_simulated_ucs_in_empty_data_dir(tmp_path):
     (train,), (test,) = exp.train, exp.test
     n = int(10 * datasets.FAST_DURATION["underwater"])  # samples at 10 Hz, split 80/20
     assert (len(train), len(test), train.fs) == (0.8 * n, 0.2 * n, 10.0)
-    from danae_lite.simulate import simulate
+    from danae_lite.core.simulate import simulate
 
     full = simulate("underwater", duration=datasets.FAST_DURATION["underwater"], seed=0)
     np.testing.assert_array_equal(np.r_[train.acc, test.acc], full.acc)
@@ -132,7 +133,7 @@ def test_missing_explicit_data_dir(tmp_path):
 def test_simulated_experiment_ignores_real_data(monkeypatch, tmp_path):
     (tmp_path / "oxiod").mkdir()
     monkeypatch.setenv("DANAE_DATA", str(tmp_path))
-    from danae_lite.datasets import simulated_experiment
+    from danae_lite.core.datasets import simulated_experiment
 
     exp = simulated_experiment("oxiod", fast=True, verbose=False)
     assert exp.data == "simulated" and [r.name for r in exp.test] == ["sim-handheld-0"]

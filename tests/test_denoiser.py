@@ -4,15 +4,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from danae_lite.angles import wrap
-from danae_lite.datasets import Experiment
-from danae_lite.denoiser import (GATE_GAINS, DanaeRes, DenoiserStream, filter_error, level_offsets,
+from danae_lite.core.angles import wrap
+from danae_lite.core.datasets import Experiment
+from danae_lite.research.denoiser import (GATE_GAINS, DanaeRes, DenoiserStream, filter_error, level_offsets,
                                  shift_levels)
-from danae_lite.features import multi_input, run_network, to_circle
-from danae_lite.leaderboard import run_leaderboard
-from danae_lite.simulate import simulate
-from danae_lite.train import TrainConfig
-from danae_lite.variants import validation_block
+from danae_lite.research.features import multi_input, run_network, to_circle
+from danae_lite.research.leaderboard import run_leaderboard
+from danae_lite.core.simulate import simulate
+from danae_lite.core.train import TrainConfig
+from danae_lite.research.variants import validation_block
 
 
 def test_filter_error_wraps_yaw_only():

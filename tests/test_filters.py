@@ -7,11 +7,11 @@ import pytest
 from scipy import signal
 from scipy.spatial.transform import Rotation
 
-from danae_lite import baselines, filters
-from danae_lite.alignment import FrameAlignment
-from danae_lite.angles import angle_diff
-from danae_lite.recording import Recording
-from danae_lite.simulate import MAG_REF
+from danae_lite.research import baselines, filters
+from danae_lite.core.alignment import FrameAlignment
+from danae_lite.core.angles import angle_diff
+from danae_lite.core.recording import Recording
+from danae_lite.core.simulate import MAG_REF
 
 FS = 100.0
 
@@ -93,7 +93,7 @@ def test_kf_baselines_on_a_static_pose(method):
     # the accelerometer roll formula of the paper is exact only at zero pitch: asin(sin(roll) cos(pitch))
     # and the heading is tilt-compensated with that roll: the KF converges to the measurements
     roll_acc = np.arcsin(np.sin(STATIC[0]) * np.cos(STATIC[1]))
-    from danae_lite.kalman import mag_heading
+    from danae_lite.core.kalman import mag_heading
 
     yaw_mag = float(mag_heading(recs[0].mag[:1], roll_acc, STATIC[1])[0])
     assert abs(yaw_mag - STATIC[2]) > 1e-3  # the measurement itself is biased by the roll formula
@@ -104,7 +104,7 @@ def test_kf_baselines_on_a_static_pose(method):
 
 def _total_error_rmse(est_by_name, recs, ctx):
     """Total-rotation RMSE [rad] from quaternion dot products (independent of total_objective)."""
-    from danae_lite.angles import euler_to_quat
+    from danae_lite.core.angles import euler_to_quat
 
     angles = []
     for r in recs:
@@ -116,7 +116,7 @@ def _total_error_rmse(est_by_name, recs, ctx):
 
 
 def test_tuned_kf_searches_jointly_and_beats_the_paper_kf_on_training_data():
-    from danae_lite.simulate import simulate
+    from danae_lite.core.simulate import simulate
 
     recs = [simulate("handheld", duration=30.0, seed=s) for s in (1, 2)]
     ctx = _ctx(recs)
@@ -133,8 +133,9 @@ def test_tuned_kf_searches_jointly_and_beats_the_paper_kf_on_training_data():
 
 
 def test_constant_is_the_training_mean_and_the_smoother_smooths_the_tuned_kf():
-    from danae_lite import kalman, kf_offline
-    from danae_lite.simulate import simulate
+    from danae_lite.core import kalman
+    from danae_lite.research import kf_offline
+    from danae_lite.core.simulate import simulate
 
     recs = [simulate("handheld", duration=30.0, seed=s) for s in (1, 2)]
     ctx = _ctx(recs)
@@ -190,7 +191,7 @@ def test_linear_map_recovers_a_known_linear_corruption_exactly():
 
 @pytest.mark.parametrize("name", ["fusion", "vqf", "madgwick", "mahony"])
 def test_every_value_of_each_joint_grid_runs_and_the_minimum_is_chosen(name):
-    from danae_lite.simulate import simulate
+    from danae_lite.core.simulate import simulate
 
     recs = [simulate("handheld", duration=5.0, seed=1)]
     m = baselines.make_method(name).fit(_ctx(recs))

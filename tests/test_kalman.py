@@ -15,7 +15,7 @@ import pytest
 import scipy.linalg
 from scipy.spatial.transform import Rotation
 
-from danae_lite.kalman import (
+from danae_lite.core.kalman import (
     AUTHORS_DT,
     KFConfig,
     accel_tilt,
@@ -28,7 +28,7 @@ from danae_lite.kalman import (
     steady_state,
     system_matrices,
 )
-from danae_lite.recording import Recording
+from danae_lite.core.recording import Recording
 
 from conftest import assert_close_scaled
 
@@ -413,7 +413,7 @@ def test_short_recording_without_convergence_matches_naive():
 
 
 def test_simulated_recording_block_equals_naive():
-    sim = pytest.importorskip("danae_lite.simulate")
+    sim = pytest.importorskip("danae_lite.core.simulate")
     rec = sim.simulate("handheld", duration=3.0, seed=2)
     cfg = KFConfig.authors()
     res = run_kf(rec, cfg)
@@ -471,7 +471,7 @@ def test_filter_input_validation():
 def test_remembered_blocks_give_exactly_the_gains_of_a_fresh_run():
     """The block recursion is remembered per (P0, Q, R, dt) block and serves other lengths:
     every answer must equal, bit for bit, what the recursion gives from scratch."""
-    from danae_lite import kf_gains
+    from danae_lite.core import kf_gains
 
     cfg = KFConfig(Q=[1e-4, 1e-6, 1e-4, 1e-6, 1e-3, 1e-6])
     dt = 0.01

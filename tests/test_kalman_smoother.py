@@ -6,9 +6,10 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from danae_lite import kalman, kf_offline
-from danae_lite.angles import wrap
-from danae_lite.simulate import simulate
+from danae_lite.core import kalman
+from danae_lite.research import kf_offline
+from danae_lite.core.angles import wrap
+from danae_lite.core.simulate import simulate
 
 
 def batch_smoother(res: kalman.KFResult) -> np.ndarray:

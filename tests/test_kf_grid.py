@@ -12,9 +12,10 @@ import itertools
 import numpy as np
 import pytest
 
-from danae_lite import baselines, kalman, kf_grid, methods
-from danae_lite.alignment import FrameAlignment
-from danae_lite.simulate import simulate
+from danae_lite.research import baselines, kf_grid, methods
+from danae_lite.core import kalman
+from danae_lite.core.alignment import FrameAlignment
+from danae_lite.core.simulate import simulate
 
 ATOL = 1e-9  # rad, see the module docstring
 

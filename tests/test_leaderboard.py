@@ -7,12 +7,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from danae_lite import cli, metrics
-from danae_lite.baselines import METHODS
-from danae_lite.datasets import Experiment
-from danae_lite.leaderboard import CSV_COLUMNS, run_leaderboard
-from danae_lite.simulate import simulate
-from danae_lite.train import TrainConfig
+from danae_lite import cli
+from danae_lite.core import metrics
+from danae_lite.research.baselines import METHODS
+from danae_lite.core.datasets import Experiment
+from danae_lite.research.leaderboard import CSV_COLUMNS, run_leaderboard
+from danae_lite.core.simulate import simulate
+from danae_lite.core.train import TrainConfig
 
 
 @pytest.fixture(scope="module")
@@ -62,7 +63,7 @@ def test_plot_draws_the_table_linear_in_method_colours_hatching_what_looks_ahead
     import matplotlib.colors as mcolors
     import matplotlib.pyplot as plt
 
-    from danae_lite.plots import method_color
+    from danae_lite.core.plots import method_color
 
     fig = board.plot("clean")
     w = board.wide("rmse", "clean").astype(float)

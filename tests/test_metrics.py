@@ -7,7 +7,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from danae_lite.metrics import (
+from danae_lite.core.metrics import (
     METRICS,
     PAPER,
     PAPER_CLAIMED_RMSE_REDUCTION,

@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 import torch
 
-from danae_lite.model import (
+from danae_lite.core.model import (
     ARCHITECTURES,
     DanaeBig,
     DanaePaper,
@@ -37,7 +37,7 @@ def big_params(c_in: int, c_out: int, h: int) -> int:
 
 
 def test_registry():
-    from danae_lite.model import DanaeCausal
+    from danae_lite.core.model import DanaeCausal
 
     assert ARCHITECTURES == {"paper": DanaePaper, "big": DanaeBig, "causal": DanaeCausal}
     assert isinstance(build_model("paper"), DanaePaper)

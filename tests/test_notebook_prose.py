@@ -69,7 +69,7 @@ def _allowed_literals(path: Path) -> frozenset[str]:
     """Numbers written as literals in the chapter's code, the package or the paper: settings and
     published values, which prose may quote without glue."""
     texts = ["".join(c["source"]) for c in _cells(path) if c["cell_type"] == "code"]
-    texts += [p.read_text() for p in sorted((ROOT / "danae_lite").glob("*.py"))]
+    texts += [p.read_text() for p in sorted((ROOT / "danae_lite").rglob("*.py"))]
     if PAPER.exists():
         texts.append(PAPER.read_text())
     return frozenset(re.findall(r"\d+(?:\.\d+)?", "\n".join(texts)))

@@ -2,12 +2,13 @@
 committed executed and without stored errors, and their stored outputs produced by the code they
 show. (nbmake executes them; this checks the files.)"""
 import json
+import os
 import re
 from pathlib import Path
 
 import pytest
 
-from danae_lite.execute import stale_reason, stamp
+from danae_lite.execute import data_fingerprint, stale_reason, stamp
 
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("[0-9][0-9]_*.ipynb"))
@@ -44,9 +45,17 @@ def test_no_stored_output_is_a_warning_on_stderr(path):
     assert not stderr, f"{path.name}: stderr output stored in (cell, text): {stderr}"
 
 
+@pytest.fixture(scope="module")
+def data_at_hand() -> str | None:
+    """The fingerprint of the real data named by ``DANAE_DATA`` (None without it: the records
+    are then checked for a fingerprint, not against the data)."""
+    env = os.environ.get("DANAE_DATA")
+    return data_fingerprint(env) if env and Path(env).is_dir() else None
+
+
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
-def test_outputs_match_the_code_they_were_executed_with(path):
-    reason = stale_reason(json.loads(path.read_text()), path.stem)
+def test_outputs_match_the_code_and_data_they_were_executed_with(path, data_at_hand):
+    reason = stale_reason(json.loads(path.read_text()), path.stem, data_at_hand)
     assert reason is None, reason
 
 
@@ -58,9 +67,13 @@ def test_the_staleness_check_accepts_a_fresh_record_only(tmp_path):
     assert "no execution record" in stale_reason(nb, copy.stem)
 
     stamp(nb, seconds=1.0, data_dir=tmp_path / "data", fast=False)
+    assert "no fingerprint of the data" in stale_reason(nb, copy.stem)  # a record from before the field
+    stamp(nb, seconds=1.0, data_dir=tmp_path / "data", fast=False, data_sha256="d1")
     copy.write_text(json.dumps(nb))
     stamped = json.loads(copy.read_text())
     assert stale_reason(stamped, copy.stem) is None
+    assert stale_reason(stamped, copy.stem, "d1") is None
+    assert "data it read differs from the data at hand" in stale_reason(stamped, copy.stem, "d2")
 
     prose = next(c for c in stamped["cells"] if c["cell_type"] == "markdown")
     prose["source"] = ["An edited paragraph."]

@@ -5,13 +5,13 @@ import numpy as np
 import pytest
 import torch
 
-from danae_lite import kalman, metrics, pipeline, simulate
-from danae_lite.angles import ANGLES
-from danae_lite.baselines import Danae, PaperKF
-from danae_lite.datasets import Experiment
-from danae_lite.leaderboard import run_leaderboard
-from danae_lite.recording import DataError
-from danae_lite.train import TrainConfig
+from danae_lite.core import kalman, metrics, pipeline, simulate
+from danae_lite.core.angles import ANGLES
+from danae_lite.research.baselines import Danae, PaperKF
+from danae_lite.core.datasets import Experiment
+from danae_lite.research.leaderboard import run_leaderboard
+from danae_lite.core.recording import DataError
+from danae_lite.core.train import TrainConfig
 
 
 @pytest.fixture(scope="module")

@@ -9,8 +9,8 @@ import pytest
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
-from danae_lite.angles import angle_diff, quat_to_euler
-from danae_lite.simulate import (
+from danae_lite.core.angles import angle_diff, quat_to_euler
+from danae_lite.core.simulate import (
     AUTHORS_UCS_STD,
     ERROR_SOURCES,
     G,

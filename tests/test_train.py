@@ -6,10 +6,10 @@ import pytest
 import torch
 
 from conftest import assert_close_scaled
-from danae_lite.seeding import default_device
-from danae_lite.model import DanaeBig, DanaePaper
-from danae_lite.checkpoints import CheckpointError
-from danae_lite.train import TrainConfig, TrainResult, load, predict, save, train
+from danae_lite.core.seeding import default_device
+from danae_lite.core.model import DanaeBig, DanaePaper
+from danae_lite.core.checkpoints import CheckpointError
+from danae_lite.core.train import TrainConfig, TrainResult, load, predict, save, train
 
 NOISE = 0.05  # rad
 
@@ -57,7 +57,7 @@ def test_window_counts_respect_recordings(trained):
     assert trained.device == "cpu" and trained.steps == 300 and trained.seconds > 0
 
 def test_validation_tail_is_the_held_out_block(trained):
-    from danae_lite.train import validation_tail
+    from danae_lite.core.train import validation_tail
 
     assert [validation_tail(n, 20, 0.1) for n in (1500, 100, 40)] == [150, 20, 20]
     assert validation_tail(1500, 20, 0.0) == 0
@@ -108,7 +108,7 @@ def test_thread_count_changes_a_seed_only_by_rounding():
 
 def test_default_threads_are_the_process_setting():
     # None means "what the entry point set" (torch.get_num_threads()), restored afterwards
-    from danae_lite.train import _default_threads
+    from danae_lite.core.train import _default_threads
 
     old = torch.get_num_threads()
     try:

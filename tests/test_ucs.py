@@ -6,7 +6,7 @@ import numpy as np
 import pytest
 
 from danae_lite import DataError
-from danae_lite.ucs import HEADER, load_recording, split_train_test
+from danae_lite.core.ucs import HEADER, load_recording, split_train_test
 
 from conftest import T0, UCS_HEADER, G, columns, edit_cell, ucs_signals, write_ucs
 

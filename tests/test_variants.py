@@ -4,15 +4,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from danae_lite import kalman
-from danae_lite.datasets import Experiment
-from danae_lite.features import MULTI_CHANNELS, from_circle, multi_input, to_circle
-from danae_lite.leaderboard import run_leaderboard
-from danae_lite.methods import total_error_rmse
-from danae_lite.simulate import simulate
-from danae_lite.streaming import predict_causal
-from danae_lite.train import TrainConfig
-from danae_lite.variants import DanaeOn, Selected, validation_block
+from danae_lite.core import kalman
+from danae_lite.core.datasets import Experiment
+from danae_lite.research.features import MULTI_CHANNELS, from_circle, multi_input, to_circle
+from danae_lite.research.leaderboard import run_leaderboard
+from danae_lite.research.methods import total_error_rmse
+from danae_lite.core.simulate import simulate
+from danae_lite.research.streaming import predict_causal
+from danae_lite.core.train import TrainConfig
+from danae_lite.research.variants import DanaeOn, Selected, validation_block
 
 
 def test_circle_round_trip_and_nan_yaw():

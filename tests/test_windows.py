@@ -4,7 +4,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from danae_lite.windows import (
+from danae_lite.core.windows import (
     Tiling,
     sliding_windows,
     stitch_overlap_average,

@@ -1,0 +1,445 @@
+"""Every method of the leaderboard behind one interface: fit on training recordings, predict angles.
+
+A method is fitted on the training recordings only (its parameters chosen by a documented
+grid search there) and then predicts roll, pitch, yaw [rad] for any recording, in the ground
+truth's frame. All methods see the same inputs: recordings already rotated into the ground
+truth's body frame by a :class:`~danae_lite.core.alignment.FrameAlignment` estimated on the
+training recordings, and they all get the same heading correction (magnetic north -> the
+ground truth's x axis). Training objectives use clean ground-truth samples only
+(:mod:`danae_lite.core.groundtruth`).
+
+========================  =========================================================================
+name                      what it is / what is tuned on the training recordings
+========================  =========================================================================
+``constant``              the training recordings' mean attitude (yaw: circular mean), whatever
+                          the sensors say: the floor any estimator must beat
+``paper_kf``              the paper's KF, untuned: P0 = Q = I6, R = I3, dt = 1/fs
+``tuned_kf``              the same KF with its yaw innovation wrapped to [-π, π) and
+                          Q = diag(q_tilt, q_bias, q_tilt, q_bias, q_yaw, q_bias), R = I; the
+                          three searched jointly on a grid (roll and pitch feed the heading
+                          formula, so no angle is tuned on runs where the others had another Q)
+``tuned_kf_rts``          the tuned KF followed by a Rauch-Tung-Striebel smoother
+                          (:func:`danae_lite.research.kf_offline.rts_smooth`): its non-causal counterpart
+``butterworth``           the paper KF's output low-passed by a digital Butterworth filter
+                          (``scipy.signal.butter``, order 2, second-order sections, zero phase with
+                          ``sosfiltfilt``); cut-off [Hz] per angle from a grid
+``moving_average``        the paper KF's output through a centred moving average; length per angle
+``linear_map``            an affine map from each 20-sample window of the paper KF's angle to the
+                          20-sample truth window, least squares on the training windows; windows
+                          averaged back like DANAE's overlap reconstruction
+``fusion`` ``vqf``        library filters (:mod:`danae_lite.research.filters`), their main parameters searched
+``madgwick`` ``mahony``   jointly on a grid (:data:`danae_lite.research.filters.FILTERS`): Fusion gain and
+                          magnetic rejection, VQF tauAcc and tauMag, Madgwick beta, Mahony k_P and k_I
+``riann``                 RIANN's shipped network, nothing tuned; roll and pitch only (yaw NaN)
+``danae``                 the paper's DANAE (one network per angle and seed) on the paper KF's
+                          output; targets exclude ground-truth glitches
+========================  =========================================================================
+
+Grid searches of whole filters (the KFs, the library filters) minimise the RMSE of the total
+rotation error on the clean training samples (:func:`total_objective`: the angle of
+``R_est R_true^T``, the BROAD benchmark's "total" error), so all three angles count together;
+the post-processing methods, which treat each angle on its own, choose per angle.
+
+Every method says whether it is ``causal`` (its output at sample ``t`` uses samples up to ``t``
+only): the KFs, the library filters and the constant are; the smoother, the zero-phase and
+centred filters, the window map and DANAE are not.
+
+Angles handled on the circle: the post-processing methods work on the KF's angle unwrapped
+along the recording, and their training target is the truth moved next to it,
+``x + wrap(truth - x)``, so that no method is taught a 2π jump; outputs are wrapped to
+[-π, π) at the end. For roll and pitch this changes nothing.
+
+The interface (:class:`~danae_lite.research.methods.Method`, the fitting context, the objectives) is
+:mod:`danae_lite.research.methods`; ``danae`` is :class:`danae_lite.core.paper_danae.PaperDanae` on the paper
+KF's output, the same estimator as the paper's experiment (:func:`danae_lite.core.pipeline.reproduce`).
+"""
+from __future__ import annotations
+
+import itertools
+from collections.abc import Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+from scipy import signal
+from scipy.ndimage import uniform_filter1d
+
+from . import filters, kf_grid, kf_offline, methods
+from ..core import kalman
+from ..core.angles import ANGLES, wrap
+from .methods import Method, total_error_rmse, total_objective, train_objective
+from ..core.paper_danae import PaperDanae, check_settings, continuous_target
+from ..core.recording import Recording
+from ..core.windows import sliding_windows, stitch_overlap_average
+
+__all__ = ["BUTTER_CUTOFFS_HZ", "BUTTER_ORDER", "KF_Q_ANGLE", "KF_Q_BIAS", "LINEAR_WINDOW", "MA_LENGTHS",
+           "METHODS", "Butterworth", "Constant", "Context", "Danae", "LibraryFilter", "LinearMap", "Method",
+           "MovingAverage", "PaperKF", "TunedKF", "TunedKFSmoother", "apply_linear_map", "butterworth_lowpass",
+           "denoiser_source", "fit_linear_map", "is_method_name", "make_method", "moving_average", "total_error_rmse",
+           "total_objective", "train_objective"]
+
+Array = NDArray[np.float64]
+
+METHODS: tuple[str, ...] = ("constant", "paper_kf", "tuned_kf", "tuned_kf_rts", "butterworth", "moving_average",
+                            "linear_map", "fusion", "vqf", "madgwick", "mahony", "riann", "danae")
+"""Leaderboard method names, in table order."""
+
+KF_Q_ANGLE = (1e-8, 1e-7, 1e-6, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1, 1.0)
+"""Grid of the tuned KF's angle process noise per step [rad²] (with R = 1 rad², only Q/R matters),
+for roll and pitch (``q_tilt``) and for yaw (``q_yaw``)."""
+KF_Q_BIAS = (0.0, 1e-12, 1e-10, 1e-8)
+"""Grid of the tuned KF's bias process noise per step [(rad/s)²]."""
+BUTTER_ORDER = 2
+"""Order of the Butterworth low-pass."""
+BUTTER_CUTOFFS_HZ = (0.02, 0.05, 0.1, 0.25, 0.5, 1.0, 2.0, 3.0, 5.0, 8.0, 12.0)
+"""Grid of cut-off frequencies [Hz]; values at or above 0.8 x Nyquist are skipped."""
+MA_LENGTHS = (3, 5, 9, 15, 25, 41, 61, 101, 201, 401, 801)
+"""Grid of moving-average lengths [samples] (odd, so the average is centred)."""
+LINEAR_WINDOW = 20
+"""Window of the linear map [samples], DANAE's."""
+
+
+@dataclass
+class Context(methods.Context):
+    """:class:`danae_lite.research.methods.Context` that builds the methods of this module by name
+    (:func:`make_method`) unless it is given another ``factory``."""
+
+    def __post_init__(self) -> None:
+        super().__post_init__()
+        if self.factory is None:
+            self.factory = make_method
+
+
+class Constant(Method):
+    name = "constant"
+    description = "the training recordings' mean attitude (yaw: circular mean), whatever the sensors say"
+    causal = True  # it uses no sample at all
+
+    def fit(self, ctx: Context) -> "Constant":
+        self.ctx = ctx
+        e = np.concatenate([r.euler[ctx.clean[r.name]] for r in ctx.train])
+        self.value = np.array([e[:, 0].mean(), e[:, 1].mean(),
+                               np.arctan2(np.sin(e[:, 2]).mean(), np.cos(e[:, 2]).mean())])
+        self.params = {a: float(v) for a, v in zip(ANGLES, self.value)}
+        return self
+
+    def predict(self, rec: Recording) -> list[Array]:
+        return [np.tile(self.value, (len(rec), 1))]
+
+
+class PaperKF(Method):
+    name = "paper_kf"
+    description = "the paper's KF, P0 = Q = I, R = I, dt = 1/fs"
+    causal = True
+
+    def __init__(self, config: kalman.KFConfig | None = None) -> None:
+        super().__init__()
+        self.config = config or kalman.KFConfig()
+
+    def fit(self, ctx: Context) -> "PaperKF":
+        self.ctx = ctx
+        self.params = {"Q_diag": np.diag(self.config.Q).tolist(), "R_diag": np.diag(self.config.R).tolist()}
+        return self
+
+    def raw(self, rec: Recording) -> Array:
+        """KF estimate in the ground-truth frame, yaw NOT wrapped (continuous along the recording)."""
+        e = kalman.run_kf(rec, self.config).euler.copy()
+        e[:, 2] = e[:, 2] + self.ctx.alignment.north_yaw
+        return e
+
+    def predict(self, rec: Recording) -> list[Array]:
+        e = self.raw(rec)
+        e[:, 2] = wrap(e[:, 2])
+        return [e]
+
+
+class TunedKF(PaperKF):
+    name = "tuned_kf"
+    description = "the paper's KF with a wrapped yaw innovation and Q searched jointly on the training recordings (R = I)"
+
+    @staticmethod
+    def _config(q_tilt: float, q_bias: float, q_yaw: float) -> kalman.KFConfig:
+        return kalman.KFConfig(Q=[q_tilt, q_bias, q_tilt, q_bias, q_yaw, q_bias], wrap_yaw_innovation=True)
+
+    def fit(self, ctx: Context) -> "TunedKF":
+        self.ctx = ctx
+        grid = list(itertools.product(KF_Q_ANGLE, KF_Q_BIAS, KF_Q_ANGLE))
+        scores = kf_grid.score_kf_grid([self._config(*g) for g in grid], ctx.train, ctx.clean,
+                                       ctx.alignment.north_yaw)
+        self.search = pd.DataFrame(grid, columns=["q_tilt", "q_bias", "q_yaw"])
+        self.search["objective"] = scores.total
+        for j, a in enumerate(ANGLES):
+            self.search[f"rmse_{a}"] = scores.per_angle[:, j]
+        best = self.search.loc[self.search["objective"].idxmin()]
+        self.params = {"q_tilt": float(best.q_tilt), "q_bias": float(best.q_bias), "q_yaw": float(best.q_yaw)}
+        self.config = self._config(**self.params)
+        return self
+
+
+class TunedKFSmoother(PaperKF):
+    name = "tuned_kf_rts"
+    description = "the tuned KF followed by a Rauch-Tung-Striebel smoother (every sample, past and future)"
+    causal = False
+
+    def fit(self, ctx: Context) -> "TunedKFSmoother":
+        self.ctx = ctx
+        self.config = ctx.method("tuned_kf").config
+        self.params = {"from": "tuned_kf"}
+        return self
+
+    def raw(self, rec: Recording) -> Array:
+        e = kf_offline.rts_smooth(kalman.run_kf(rec, self.config))[:, 0::2].copy()
+        e[:, 2] = e[:, 2] + self.ctx.alignment.north_yaw
+        return e
+
+
+def butterworth_lowpass(x: Array, cutoff_hz: float, fs: float, order: int = BUTTER_ORDER) -> Array:
+    """Zero-phase digital Butterworth low-pass along axis 0 (``butter(..., fs=fs, output="sos")``
+    + ``sosfiltfilt``). ``cutoff_hz`` [Hz] must be below the Nyquist frequency ``fs / 2``."""
+    if not 0.0 < cutoff_hz < fs / 2.0:
+        raise ValueError(f"cut-off {cutoff_hz} Hz must be in (0, {fs / 2.0}) Hz (Nyquist at fs = {fs} Hz)")
+    sos = signal.butter(order, cutoff_hz, btype="low", fs=fs, output="sos")
+    return signal.sosfiltfilt(sos, x, axis=0)
+
+
+def moving_average(x: Array, length: int) -> Array:
+    """Centred moving average of odd ``length`` [samples] along axis 0, edges repeating the end samples."""
+    if length < 1 or length % 2 == 0:
+        raise ValueError(f"moving-average length must be a positive odd number of samples, got {length}")
+    return uniform_filter1d(np.asarray(x, dtype=float), length, axis=0, mode="nearest")
+
+
+class _OnPaperKF(Method):
+    """Post-processing of the paper KF's output (continuous angles, truth frame); every one of
+    them uses samples after ``t`` for its output at ``t``."""
+
+    def fit(self, ctx: Context) -> "_OnPaperKF":
+        self.ctx = ctx
+        self.kf = ctx.method("paper_kf")
+        self.kf_train = {r.name: self.kf.raw(r) for r in ctx.train}
+        return self
+
+
+class _Smoother(_OnPaperKF):
+    grid_name = ""
+
+    def grid(self, fs: float) -> list[Any]:
+        raise NotImplementedError
+
+    def apply(self, x: Array, value: Any, fs: float) -> Array:
+        raise NotImplementedError
+
+    def fit(self, ctx: Context) -> "_Smoother":
+        super().fit(ctx)
+        fs = ctx.train[0].fs
+        rows = []
+        for v in self.grid(fs):
+            est = {name: self.apply(x, v, fs) for name, x in self.kf_train.items()}
+            obj = train_objective(est, ctx, (0, 1, 2))
+            rows.append({self.grid_name: v, **{f"rmse_{a}": float(o) for a, o in zip(ANGLES, obj)}})
+        self.search = pd.DataFrame(rows)
+        self.params = {a: float(self.search.loc[self.search[f"rmse_{a}"].idxmin(), self.grid_name]) for a in ANGLES}
+        return self
+
+    def predict(self, rec: Recording) -> list[Array]:
+        x = self.kf.raw(rec)
+        out = np.column_stack([self.apply(x[:, k], self._value(self.params[a]), rec.fs) for k, a in enumerate(ANGLES)])
+        out[:, 2] = wrap(out[:, 2])
+        return [out]
+
+    def _value(self, v: float) -> Any:
+        return v
+
+
+class Butterworth(_Smoother):
+    name = "butterworth"
+    description = f"paper KF + digital Butterworth low-pass, order {BUTTER_ORDER}, zero phase (sosfiltfilt)"
+    grid_name = "cutoff_hz"
+
+    def grid(self, fs: float) -> list[Any]:
+        return [c for c in BUTTER_CUTOFFS_HZ if c < 0.8 * fs / 2.0]
+
+    def apply(self, x: Array, value: Any, fs: float) -> Array:
+        return butterworth_lowpass(x, float(value), fs)
+
+
+class MovingAverage(_Smoother):
+    name = "moving_average"
+    description = "paper KF + centred moving average"
+    grid_name = "length"
+
+    def grid(self, fs: float) -> list[Any]:
+        return list(MA_LENGTHS)
+
+    def apply(self, x: Array, value: Any, fs: float) -> Array:
+        return moving_average(x, int(value))
+
+    def _value(self, v: float) -> Any:
+        return int(v)
+
+
+def fit_linear_map(inputs: Sequence[Array], targets: Sequence[Array], window: int = LINEAR_WINDOW,
+                   masks: Sequence[NDArray[np.bool_]] | None = None) -> Array:
+    """Least-squares affine map from input windows to target windows.
+
+    Returns ``W`` of shape (window + 1, window): ``y_window ≈ [x_window, 1] @ W``. Windows
+    (stride 1, never across recordings) holding a masked-out target sample are left out."""
+    xs, ys = [], []
+    for i, (x, y) in enumerate(zip(inputs, targets)):
+        wx, wy = sliding_windows(np.asarray(x, dtype=float), window), sliding_windows(np.asarray(y, dtype=float), window)
+        if masks is not None:
+            ok = sliding_windows(np.asarray(masks[i], dtype=bool), window).all(axis=1)
+            wx, wy = wx[ok], wy[ok]
+        xs.append(wx)
+        ys.append(wy)
+    X, Y = np.concatenate(xs), np.concatenate(ys)
+    if len(X) <= window:
+        raise ValueError(f"{len(X)} usable windows: too few to fit a {window + 1} x {window} affine map")
+    A = np.hstack([X, np.ones((len(X), 1))])
+    W, *_ = np.linalg.lstsq(A, Y, rcond=None)
+    return W
+
+
+def apply_linear_map(W: Array, x: Array) -> Array:
+    """Apply :func:`fit_linear_map`'s ``W`` to every stride-1 window of ``x`` (N,) and average the
+    overlapping window outputs back to (N,)."""
+    window = W.shape[1]
+    wx = sliding_windows(np.asarray(x, dtype=float), window)
+    pred = np.hstack([wx, np.ones((len(wx), 1))]) @ W
+    return stitch_overlap_average(pred[:, :, None], len(x))[:, 0]
+
+
+class LinearMap(_OnPaperKF):
+    name = "linear_map"
+    description = f"paper KF + affine least-squares map of {LINEAR_WINDOW}-sample windows (overlap average)"
+
+    def fit(self, ctx: Context) -> "LinearMap":
+        super().fit(ctx)
+        self.W = {}
+        for k, a in enumerate(ANGLES):
+            xs = [self.kf_train[r.name][:, k] for r in ctx.train]
+            ys = [continuous_target(self.kf_train[r.name][:, k], r.euler[:, k]) for r in ctx.train]
+            self.W[a] = fit_linear_map(xs, ys, masks=[ctx.clean[r.name] for r in ctx.train])
+        self.params = {"window": LINEAR_WINDOW, "coefficients": (LINEAR_WINDOW + 1) * LINEAR_WINDOW}
+        return self
+
+    def predict(self, rec: Recording) -> list[Array]:
+        x = self.kf.raw(rec)
+        out = np.column_stack([apply_linear_map(self.W[a], x[:, k]) for k, a in enumerate(ANGLES)])
+        out[:, 2] = wrap(out[:, 2])
+        return [out]
+
+
+class LibraryFilter(Method):
+    """A filter of :data:`danae_lite.research.filters.FILTERS`, its grid searched on the training recordings."""
+
+    causal = True  # each runs sample by sample on the past only (see danae_lite.research.filters)
+
+    def __init__(self, name: str) -> None:
+        super().__init__()
+        if name not in filters.FILTERS:
+            raise ValueError(f"unknown filter {name!r}; choose one of {', '.join(filters.FILTERS)}")
+        self.name = name
+        self.spec = filters.FILTERS[name]
+        self.description = (self.spec.run.__doc__ or "").strip().split("\n")[0]
+
+    def run(self, rec: Recording, **params: Any) -> Array:
+        e = filters.filter_euler(self.name, rec.gyro, rec.acc, rec.mag, rec.fs, **params)
+        return self.ctx.alignment.to_truth_frame(e) if self.spec.has_yaw else e
+
+    def fit(self, ctx: Context) -> "LibraryFilter":
+        self.ctx = ctx
+        keys = list(self.spec.grid)
+        rows = []
+        for values in itertools.product(*(self.spec.grid[k] for k in keys)):
+            params = dict(zip(keys, values))
+            est = {r.name: self.run(r, **params) for r in ctx.train}
+            per_angle = train_objective(est, ctx, (0, 1, 2))
+            rows.append({**params, **{f"rmse_{a}": float(v) for a, v in zip(ANGLES, per_angle)},
+                         "objective": total_objective(est, ctx)})
+        if rows:
+            self.search = pd.DataFrame(rows)
+            best = self.search.loc[self.search["objective"].idxmin()]
+            self.params = {k: (float(best[k]) if isinstance(best[k], (int, float, np.floating)) else best[k]) for k in keys}
+        return self
+
+    def predict(self, rec: Recording) -> list[Array]:
+        return [self.run(rec, **self.params)]
+
+
+class Danae(_OnPaperKF):
+    """The paper's DANAE: one network per angle and seed on the paper KF's output.
+
+    Parameters
+    ----------
+    targets : ``"continuous"`` (default: the truth moved next to the KF's unwrapped angle,
+        ``x + wrap(truth - x)``, so no target jumps by 2π) or ``"raw"`` (the ground-truth angle
+        as recorded, yaw in [-π, π): the paper's and the authors' code).
+    clean_targets : leave the ground truth's glitches out of the loss (default) or train on
+        every sample as the paper did.
+    angles : the angles that get a network; the others are predicted as NaN.
+    """
+
+    name = "danae"
+    source = "paper_kf"
+    description = "the paper's DANAE per angle on the paper KF's output, glitch-free targets"
+
+    def __init__(self, targets: str = "continuous", clean_targets: bool = True,
+                 angles: Sequence[str] = ANGLES) -> None:
+        super().__init__()
+        self.angles = check_settings(targets, angles)
+        self.targets, self.clean_targets = targets, bool(clean_targets)
+        if targets == "raw" or not clean_targets:
+            self.description = (f"the paper's DANAE per angle on the paper KF's output, {targets} targets, "
+                                f"{'glitch-free' if clean_targets else 'every'} target sample")
+
+    def fit(self, ctx: Context) -> Danae:
+        super().fit(ctx)
+        self.model = PaperDanae(self.angles, targets=self.targets, config=ctx.train_config, seeds=ctx.seeds,
+                                tag=self.name, metadata={"method": self.name, "train": [r.name for r in ctx.train]},
+                                cache=ctx.cache, jobs=ctx.jobs, progress=ctx.progress)
+        self.model.fit([self.kf_train[r.name] for r in ctx.train], [r.euler for r in ctx.train],
+                       [ctx.clean[r.name] for r in ctx.train] if self.clean_targets else None)
+        self.results = self.model.results_
+        cfg = ctx.train_config
+        self.params = {"arch": cfg.arch, "window": cfg.window, "lr": cfg.lr, "batch_size": cfg.batch_size,
+                       "epochs": cfg.epochs, "max_steps": cfg.max_steps, "seeds": list(ctx.seeds),
+                       "targets": self.targets, "clean_targets": self.clean_targets}
+        self.seconds_training = self.model.seconds_
+        return self
+
+    def predict(self, rec: Recording) -> list[Array]:
+        return self.model.predict(self.kf.raw(rec))
+
+
+def make_method(name: str) -> Method:
+    """A fresh, unfitted method of this module by leaderboard name: one of :data:`METHODS`
+    (a library filter for the names of :data:`danae_lite.research.filters.FILTERS`).
+    :func:`danae_lite.research.registry.make_method` builds the ``danae-res[<filter>]`` names too."""
+    simple = {"constant": Constant, "paper_kf": PaperKF, "tuned_kf": TunedKF, "tuned_kf_rts": TunedKFSmoother,
+              "butterworth": Butterworth, "moving_average": MovingAverage, "linear_map": LinearMap, "danae": Danae}
+    if name in simple:
+        return simple[name]()
+    if name in filters.FILTERS:
+        return LibraryFilter(name)
+    if denoiser_source(name) is not None:
+        raise ValueError(f"{name!r} is the denoiser of danae_lite.research.denoiser: build it with "
+                         "danae_lite.research.registry.make_method")
+    raise ValueError(f"unknown method {name!r}; choose from {', '.join(METHODS)} or danae-res[<filter>]")
+
+
+def denoiser_source(name: str) -> str | None:
+    """``"danae-res[vqf]"`` -> ``"vqf"`` when the bracket holds a filter of :data:`METHODS`, else None."""
+    if name.startswith("danae-res[") and name.endswith("]"):
+        source = name[len("danae-res["):-1]
+        if source in METHODS and not source.startswith("danae"):
+            return source
+    return None
+
+
+def is_method_name(name: str) -> bool:
+    """Whether :func:`danae_lite.research.registry.make_method` knows ``name``: one of :data:`METHODS` or ``danae-res[<filter>]``
+    (the recommended denoiser on that filter's output, :class:`danae_lite.research.denoiser.DanaeRes`)."""
+    return name in METHODS or denoiser_source(name) is not None

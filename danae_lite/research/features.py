@@ -1,0 +1,71 @@
+"""What the learned methods beyond the paper share: their input channels and their causal network.
+
+* :func:`to_circle` / :func:`from_circle`: angles with yaw as (sin, cos), so that no input or
+  target jumps by 2π (:data:`ANGLE_CHANNELS`).
+* :func:`multi_input`: the 11 channels of :data:`MULTI_CHANNELS` (a filter's angles, the
+  accelerometer's tilt, the tilt-compensated magnetic heading, the Euler rates of the gyro).
+* :data:`CAUSAL_SETTINGS`: the causal network of chapter 6 (the DANAE variant
+  :func:`danae_lite.research.variants.causal_variant` and DANAE-res, :mod:`danae_lite.research.denoiser`).
+* :func:`run_network`: a trained network over a whole recording, causal or not.
+
+Used by :mod:`danae_lite.research.variants` and :mod:`danae_lite.research.denoiser`.
+"""
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from ..core import kalman
+from ..core.recording import Recording
+from .streaming import predict_causal
+from ..core.train import TrainResult, predict
+
+Array = NDArray[np.float64]
+
+ANGLE_CHANNELS: tuple[str, ...] = ("roll", "pitch", "sin yaw", "cos yaw")
+"""Channels of :func:`to_circle` (and of every variant's target)."""
+MULTI_CHANNELS: tuple[str, ...] = (*ANGLE_CHANNELS, "roll acc", "pitch acc", "sin yaw mag", "cos yaw mag",
+                                   "roll rate", "pitch rate", "yaw rate")
+"""Input channels of the multi-input variant: angles [rad, -], accelerometer tilt [rad],
+magnetic heading [-], Euler rates [rad/s]."""
+CAUSAL_SETTINGS: dict[str, Any] = {"arch": "causal", "hidden": 64, "window": 64, "loss_start": 30}
+"""The causal network (:class:`~danae_lite.core.model.DanaeCausal`) as
+:class:`~danae_lite.core.train.TrainConfig` overrides: 64 channels, dilations 1-8 (receptive field 31
+samples), trained on 64-sample windows with the loss on positions 30-63 only, where the full
+past is inside the window."""
+
+
+def to_circle(euler: Array) -> Array:
+    """(N, 3) roll, pitch, yaw [rad] -> (N, 4) roll, pitch, sin yaw, cos yaw. NaN yaw -> 0, 0."""
+    e = np.asarray(euler, dtype=float)
+    sc = np.nan_to_num(np.column_stack([np.sin(e[:, 2]), np.cos(e[:, 2])]), nan=0.0)
+    return np.column_stack([e[:, :2], sc])
+
+
+def from_circle(x: Array) -> Array:
+    """(N, 4) -> (N, 3): yaw = atan2(sin, cos) in (-pi, pi] (the vector need not be unit length)."""
+    x = np.asarray(x, dtype=float)
+    return np.column_stack([x[:, 0], x[:, 1], np.arctan2(x[:, 2], x[:, 3])])
+
+
+def multi_input(rec: Recording, est: Array, north_yaw: float) -> Array:
+    """The 11 channels of :data:`MULTI_CHANNELS` for an aligned recording and a filter's
+    estimate ``est`` (N, 3) [rad] in the ground-truth frame. The heading from the
+    magnetometer is tilt-compensated with the estimate's roll and pitch and turned to the
+    ground-truth frame with ``north_yaw`` [rad]; the Euler rates use the same roll and pitch."""
+    est = np.asarray(est, dtype=float)
+    tilt = kalman.accel_tilt(rec.acc)
+    heading = kalman.mag_heading(rec.mag, est[:, 0], est[:, 1]) + north_yaw
+    rates = kalman.euler_rates(rec.gyro, est[:, 0], est[:, 1])
+    return np.column_stack([to_circle(est), tilt, np.sin(heading), np.cos(heading), rates])
+
+
+def run_network(res: TrainResult, x: Array) -> Array:
+    """Output (N, D) of the trained network ``res`` on a whole recording's inputs ``x`` (N, C):
+    a causal network sample by sample over its past (:func:`~danae_lite.research.streaming.predict_causal`),
+    any other one window by window with the overlap average (:func:`~danae_lite.core.train.predict`)."""
+    if res.config.arch == "causal":
+        return predict_causal(res, x)
+    return predict(res, x)

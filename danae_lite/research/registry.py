@@ -1,0 +1,27 @@
+"""Leaderboard names -> methods: the one place that knows every method the leaderboard can run.
+
+* the names of :data:`~danae_lite.research.baselines.METHODS` (the baselines and the library filters of
+  :mod:`danae_lite.research.baselines`, and the paper's DANAE), in table order;
+* ``danae-res[<filter>]``: the recommended denoiser (:class:`danae_lite.research.denoiser.DanaeRes`) on
+  the output of a filter of :data:`~danae_lite.research.baselines.METHODS`.
+
+Further methods (the variants of :mod:`danae_lite.research.variants`, a method of one's own) are given
+to the leaderboard as objects (``run_leaderboard(..., extra=[...])``), not by name.
+"""
+from __future__ import annotations
+
+from .baselines import METHODS, denoiser_source, is_method_name
+from .baselines import make_method as make_baseline
+from .denoiser import DanaeRes
+from .methods import Method
+
+__all__ = ["METHODS", "is_method_name", "make_method"]
+
+
+def make_method(name: str) -> Method:
+    """A fresh, unfitted method by leaderboard name (:func:`is_method_name`); ValueError for
+    any other name."""
+    source = denoiser_source(name)
+    if source is not None:
+        return DanaeRes(source)
+    return make_baseline(name)
