@@ -324,6 +324,24 @@ def _kernel_setup(data: Path | None, cache: Path | None, *, fast: bool, jobs: in
     return env, cache / ("fast" if fast else "full") if cache is not None else None
 
 
+ROW_COLUMNS = ["notebook", "seconds", "networks_trained", "networks_cached", "data", "fast", "written"]
+"""Columns of the table :func:`execute_book` returns, one row per notebook."""
+
+
+def _row(path: Path, target: Path, record: Mapping[str, Any], *, data: Path | None, fast: bool) -> dict[str, Any]:
+    """The table row of one executed notebook (see :data:`ROW_COLUMNS`)."""
+    return {"notebook": path.name, "seconds": record.get("seconds"), "networks_trained": record.get("networks_trained"),
+            "networks_cached": record.get("networks_cached"), "data": "real" if data else "simulated", "fast": fast,
+            "written": str(target)}
+
+
+def _one_line(row: Mapping[str, Any]) -> str:
+    """What a run prints for one chapter: its seconds, the networks trained and found, where it went."""
+    trained, cached = row["networks_trained"], row["networks_cached"]
+    counted = f", {trained} network(s) trained, {cached} found in the cache" if cached is not None else ""
+    return f"{Path(row['notebook']).stem}: {row['seconds']:.1f} s{counted} -> {row['written']}"
+
+
 def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str | os.PathLike[str] | None,
                  cache_dir: str | os.PathLike[str] | None, fast: bool, jobs: int = 1, cache_gb: float = DEFAULT_CACHE_GB,
                  out_dir: str | os.PathLike[str] | None = None, timeout: float | None = 3600,
@@ -397,16 +415,11 @@ def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str |
         target = out / path.name if out is not None else path
         record = execute_notebook(path, out_path=target, env=env, data_dir=data, fast=fast, timeout=timeout,
                                   networks=networks, data_sha256=fingerprint)
-        seconds, trained, cached = (record.get(k) for k in ("seconds", "networks_trained", "networks_cached"))
-        rows.append({"notebook": path.name, "seconds": seconds, "networks_trained": trained,
-                     "networks_cached": cached, "data": "real" if data else "simulated", "fast": fast,
-                     "written": str(target)})
+        rows.append(_row(path, target, record, data=data, fast=fast))
         if progress:
-            counted = f", {trained} network(s) trained, {cached} found in the cache" if cached is not None else ""
-            bar.write(f"{path.stem}: {seconds:.1f} s{counted} -> {target}")
+            bar.write(_one_line(rows[-1]))
     bar.close()
-    table = pd.DataFrame(rows, columns=["notebook", "seconds", "networks_trained", "networks_cached", "data",
-                                        "fast", "written"])
+    table = pd.DataFrame(rows, columns=ROW_COLUMNS)
     if progress and rows:
         print(f"{len(rows)} notebook(s) executed in {table['seconds'].sum():.1f} s")
     return table

@@ -386,14 +386,9 @@ def reference_madgwick(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, f
                 mx, my, mz = mrow
                 nm = 1.0 / sqrt(mx * mx + my * my + mz * mz)
                 mx, my, mz = mx * nm, my * nm, mz * nm
-                r11 = 1.0 - 2.0 * (y * y + z * z)
-                r12 = 2.0 * (x * y - w * z)
-                r13 = 2.0 * (x * z + w * y)
-                r21 = 2.0 * (x * y + w * z)
-                r22 = 1.0 - 2.0 * (x * x + z * z)
-                r23 = 2.0 * (y * z - w * x)
-                hx = r11 * mx + r12 * my + r13 * mz
-                hy = r21 * mx + r22 * my + r23 * mz
+                r11, r12, r13 = 1.0 - 2.0 * (y * y + z * z), 2.0 * (x * y - w * z), 2.0 * (x * z + w * y)
+                r21, r22, r23 = 2.0 * (x * y + w * z), 1.0 - 2.0 * (x * x + z * z), 2.0 * (y * z - w * x)
+                hx, hy = r11 * mx + r12 * my + r13 * mz, r21 * mx + r22 * my + r23 * mz
                 hz = r31 * mx + r32 * my + r33 * mz
                 bx = 0.5 * sqrt(hx * hx + hy * hy)
                 bz = 0.5 * hz
