@@ -73,6 +73,24 @@ def test_unknown_filter_and_bad_shapes_are_rejected():
         filters.run_filter("vqf", np.zeros((5, 3)), np.ones((5, 3)), None, 0.0)
 
 
+def test_a_repeated_run_comes_from_the_memo_unchanged():
+    rec = pose_recording(turning, 5.0)
+    memo = filters.memo
+    first = filters.run_filter("vqf", rec.gyro, rec.acc, rec.mag, rec.fs, tauAcc=2.0)
+    hits = memo.hits
+    first[:] = 0.0  # the caller's copy: changing it changes nothing stored
+    again = filters.run_filter("vqf", rec.gyro.copy(), rec.acc, rec.mag, rec.fs, tauAcc=2.0)
+    assert memo.hits == hits + 1
+    np.testing.assert_array_equal(again, filters.vqf(rec.gyro, rec.acc, rec.mag, rec.fs, tauAcc=2.0))
+    misses = memo.misses
+    other = filters.run_filter("vqf", rec.gyro, rec.acc, rec.mag, rec.fs, tauAcc=5.0)
+    moved = rec.gyro.copy()
+    moved[100, 0] += 1e-9
+    filters.run_filter("vqf", moved, rec.acc, rec.mag, rec.fs, tauAcc=2.0)
+    assert memo.misses == misses + 2  # other parameters, other data: computed
+    np.testing.assert_array_equal(other, filters.vqf(rec.gyro, rec.acc, rec.mag, rec.fs, tauAcc=5.0))
+
+
 def test_riann_model_file_is_found_explicitly():
     assert filters.riann_model_path().endswith("riann.onnx")
 

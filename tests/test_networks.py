@@ -1,4 +1,5 @@
 """danae_lite.core.networks: the one training path (per head and seed), its cache and its worker processes."""
+import os
 import pathlib
 
 import numpy as np
@@ -182,3 +183,14 @@ def test_loading_a_network_keeps_it_in_a_capped_cache(data, tmp_path):
     small = networks.NetworkCache(tmp_path, max_bytes=2 * size + size // 2)
     networks.train_networks({"roll": xs["roll"]}, {"roll": ys["roll"]}, cfg, (2,), cache=small)
     assert sorted(int(p.name.split("-seed")[1].split("-")[0]) for p in tmp_path.glob("*.pt")) == [0, 2]
+
+
+def test_the_worker_pool_stays_up_between_calls_and_survives_an_error():
+    # the same two workers answer both calls (they keep their imports and memos); a call that
+    # raises reaches the caller with its error, and the pool still works afterwards
+    first = set(networks.in_processes(os.getpid, [()] * 6, processes=2, threads=1))
+    with pytest.raises(ValueError, match="invalid literal"):
+        list(networks.in_processes(int, [("1",), ("x",), ("3",)], processes=2, threads=1))
+    second = set(networks.in_processes(os.getpid, [()] * 6, processes=2, threads=1))
+    assert os.getpid() not in first and len(first | second) <= 2
+    assert list(networks.in_processes(int, [("4",), ("5",)], processes=2, threads=1)) == [4, 5]

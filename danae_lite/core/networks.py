@@ -14,8 +14,8 @@ DANAE; ``"joint"`` for a variant that predicts all angles at once), and returns 
   in its place. A :class:`NetworkCache` with a size cap removes its least recently used files
   when a new one would exceed the cap (a plain folder has no cap).
 * **Parallel** (``jobs``): the trainings that the cache does not hold run in ``jobs`` worker
-  processes (:func:`in_processes`, the package's one process pool, also used by
-  :mod:`danae_lite.research.crossval`), each with ``max(1, cores // jobs)`` torch threads
+  processes (:func:`in_processes`, the package's one process pool, kept for the life of the
+  process and also used by :mod:`danae_lite.research.crossval`), each with ``max(1, cores // jobs)`` torch threads
   (:func:`threads_per_process`) unless the configuration fixes ``num_threads``.
   A network does not depend on the number of threads beyond float rounding
   (``tests/test_train.py``), so ``jobs`` changes the wall time, not the results.
@@ -198,26 +198,48 @@ def threads_per_process(processes: int) -> int:
     return max(1, (os.cpu_count() or 1) // processes)
 
 
+_POOLS: dict[tuple[int, int], ProcessPoolExecutor] = {}
+
+
+def worker_pool(processes: int, threads: int) -> ProcessPoolExecutor:
+    """This process's pool of ``processes`` workers (``spawn`` start) with ``threads`` torch CPU
+    threads each: started on first use and kept until the process exits, so that a worker
+    imports the package once and keeps what it remembered from one call to the next
+    (:mod:`danae_lite.research.memo`); a broken pool (a worker died) is replaced."""
+    key = (int(processes), int(threads))
+    pool = _POOLS.get(key)
+    if pool is None or getattr(pool, "_broken", False):
+        pool = ProcessPoolExecutor(max_workers=key[0], mp_context=get_context("spawn"),
+                                   initializer=_set_torch_threads, initargs=(key[1],))
+        _POOLS[key] = pool
+    return pool
+
+
 def in_processes(fn: Callable[..., R], calls: Sequence[tuple[Any, ...]], *, processes: int,
                  threads: int) -> Iterator[R]:
-    """``fn(*args)`` for each ``args`` of ``calls``, run in worker processes; results in order.
+    """``fn(*args)`` for each ``args`` of ``calls``, run in the worker processes of
+    :func:`worker_pool`; results in order.
 
     Parameters
     ----------
     fn : a module-level function (it is pickled to the workers, as are its arguments).
     calls : one tuple of positional arguments per call.
-    processes : worker processes (``spawn`` start; at most one per call).
+    processes : worker processes (``spawn`` start).
     threads : torch CPU threads in each worker (e.g. :func:`threads_per_process`).
 
     Yields
     ------
-    The result of each call, in the order of ``calls``, as soon as it and those before it are done.
+    The result of each call, in the order of ``calls``, as soon as it and those before it are
+    done. If a call raises, the calls not yet started are cancelled and the error is raised.
     """
-    with ProcessPoolExecutor(max_workers=min(processes, len(calls)), mp_context=get_context("spawn"),
-                             initializer=_set_torch_threads, initargs=(threads,)) as pool:
-        futures = [pool.submit(fn, *args) for args in calls]
+    pool = worker_pool(processes, threads)
+    futures = [pool.submit(fn, *args) for args in calls]
+    try:
         for fut in futures:
             yield fut.result()
+    finally:
+        for fut in futures:
+            fut.cancel()
 
 
 def run_jobs(jobs_: Sequence[NetworkJob], *, cache: str | os.PathLike[str] | None = None, jobs: int = 1,

@@ -13,8 +13,10 @@ A :class:`Split` is one training set and the recordings held out from it. The pr
 alignment all see the training recordings only), and scores every held-out recording on its
 own: one row per split, test recording, method, sample subset and angle. Splits are
 independent, so ``jobs`` > 1 runs them in worker processes
-(:class:`concurrent.futures.ProcessPoolExecutor`, ``spawn`` start, ``cores // jobs`` torch
-threads each); with a single split the workers train its networks instead.
+(:func:`danae_lite.core.networks.in_processes`: ``spawn`` start, ``cores // jobs`` torch
+threads each, kept for the life of the process, so that a worker's filter runs and network
+outputs, :mod:`danae_lite.research.memo`, serve later splits too); with a single split the
+workers train its networks instead.
 
 Aggregation (:class:`CrossValidation`): per recording the mean over seeds, then the mean and
 sample standard deviation over held-out recordings (:func:`danae_lite.core.metrics.spread`), and

@@ -19,6 +19,7 @@ from numpy.typing import NDArray
 
 from ..core import kalman
 from ..core.recording import Recording
+from .memo import RunMemo, digest
 from .streaming import predict_causal
 from ..core.train import TrainResult, predict
 
@@ -62,10 +63,26 @@ def multi_input(rec: Recording, est: Array, north_yaw: float) -> Array:
     return np.column_stack([to_circle(est), tilt, np.sin(heading), np.cos(heading), rates])
 
 
+memo = RunMemo(1 << 30)
+"""Network outputs kept by :func:`run_network` (1 GiB)."""
+
+
+def network_digest(res: TrainResult) -> str:
+    """:func:`~danae_lite.research.memo.digest` of a trained network: its settings and every
+    parameter and buffer (weights, standardisation): equal digests, equal outputs."""
+    state = res.model.state_dict()
+    return digest(np.frombuffer(repr(sorted(res.config.to_dict().items())).encode(), dtype=np.uint8),
+                  *(state[k].detach().cpu().numpy() for k in sorted(state)))
+
+
 def run_network(res: TrainResult, x: Array) -> Array:
     """Output (N, D) of the trained network ``res`` on a whole recording's inputs ``x`` (N, C):
     a causal network sample by sample over its past (:func:`~danae_lite.research.streaming.predict_causal`),
-    any other one window by window with the overlap average (:func:`~danae_lite.core.train.predict`)."""
-    if res.config.arch == "causal":
-        return predict_causal(res, x)
-    return predict(res, x)
+    any other one window by window with the overlap average (:func:`~danae_lite.core.train.predict`).
+    The same network on the same inputs earlier in this process: the stored output (:data:`memo`)."""
+    key = (network_digest(res), digest(np.asarray(x, dtype=float)))
+    found = memo.get(key)
+    if found is None:
+        found = predict_causal(res, x) if res.config.arch == "causal" else predict(res, x)
+        memo.put(key, found)
+    return found

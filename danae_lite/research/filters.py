@@ -45,6 +45,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from ..core.angles import G, quat_to_euler
+from .memo import RunMemo, digest
 
 Array = NDArray[np.float64]
 
@@ -204,14 +205,25 @@ magnetic rejection [deg], VQF's tauAcc and tauMag [s], Madgwick's beta [rad/s], 
 and k_I."""
 
 
+memo = RunMemo(2 << 30)
+"""Filter outputs kept by :func:`run_filter` (2 GiB: every distinct run of a chapter's grid searches)."""
+
+
 def run_filter(name: str, gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs: float, **params: Any) -> Array:
     """Run library filter ``name`` (see :data:`FILTERS`); returns (N, 4) ``[x, y, z, w]``,
-    body -> NWU."""
+    body -> NWU. A run made before in this process with the same data and parameters is
+    returned from :data:`memo` (a copy)."""
     try:
         spec = FILTERS[name]
     except KeyError:
         raise ValueError(f"unknown filter {name!r}; choose one of {', '.join(FILTERS)}") from None
-    return spec.run(gyro, acc, mag, fs, **params)
+    g, a, m = _check(gyro, acc, mag, fs)
+    key = (name, float(fs), tuple(sorted((k, repr(v)) for k, v in params.items())), digest(g, a, m))
+    found = memo.get(key)
+    if found is None:
+        found = spec.run(g, a, m, fs, **params)
+        memo.put(key, found)
+    return found
 
 
 def filter_euler(name: str, gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs: float,
