@@ -91,6 +91,25 @@ def test_a_repeated_run_comes_from_the_memo_unchanged():
     np.testing.assert_array_equal(other, filters.vqf(rec.gyro, rec.acc, rec.mag, rec.fs, tauAcc=5.0))
 
 
+def test_a_grid_run_in_worker_processes_gives_the_same_bits_and_is_stored_here():
+    rec = pose_recording(turning, 3.0)
+    rng = np.random.default_rng(5)
+    acc = rec.acc + 0.05 * rng.normal(size=rec.acc.shape)  # noisy tilt: tauAcc matters
+    calls = [("vqf", rec.gyro, acc, rec.mag, rec.fs, {"tauAcc": t}) for t in (1.0, 2.0, 4.0)]
+    calls.append(("fusion", rec.gyro, acc, rec.mag, rec.fs, {"gain": 0.2}))
+    filters.memo.clear()
+    parallel = filters.run_many(calls, jobs=2)        # computed in two workers
+    assert filters.memo.hits == 0 and len(parallel) == 4
+    with filters.memo.bypassed():
+        serial = filters.run_many(calls)               # computed here, one after the other
+    for p, s in zip(parallel, serial):
+        np.testing.assert_array_equal(p, s)
+    assert np.abs(parallel[0] - parallel[2]).max() > 1e-4
+    again = filters.run_many(calls, jobs=2)
+    assert filters.memo.hits == 4                      # stored in this process
+    np.testing.assert_array_equal(again[3], serial[3])
+
+
 def test_riann_model_file_is_found_explicitly():
     assert filters.riann_model_path().endswith("riann.onnx")
 

@@ -346,16 +346,22 @@ class LibraryFilter(Method):
         self.description = (self.spec.run.__doc__ or "").strip().split("\n")[0]
 
     def run(self, rec: Recording, **params: Any) -> Array:
-        e = filters.filter_euler(self.name, rec.gyro, rec.acc, rec.mag, rec.fs, **params)
+        return self._frame(filters.run_filter(self.name, rec.gyro, rec.acc, rec.mag, rec.fs, **params))
+
+    def _frame(self, q: Array) -> Array:
+        """The filter's quaternions as Euler angles [rad] in the ground-truth frame."""
+        e = filters.to_euler(self.name, q)
         return self.ctx.alignment.to_truth_frame(e) if self.spec.has_yaw else e
 
     def fit(self, ctx: Context) -> "LibraryFilter":
         self.ctx = ctx
         keys = list(self.spec.grid)
+        grid = [dict(zip(keys, values)) for values in itertools.product(*(self.spec.grid[k] for k in keys))]
+        runs = iter(filters.run_many([(self.name, r.gyro, r.acc, r.mag, r.fs, params)
+                                      for params in grid for r in ctx.train], jobs=ctx.jobs))
         rows = []
-        for values in itertools.product(*(self.spec.grid[k] for k in keys)):
-            params = dict(zip(keys, values))
-            est = {r.name: self.run(r, **params) for r in ctx.train}
+        for params in grid:
+            est = {r.name: self._frame(next(runs)) for r in ctx.train}
             per_angle = train_objective(est, ctx, (0, 1, 2))
             rows.append({**params, **{f"rmse_{a}": float(v) for a, v in zip(ANGLES, per_angle)},
                          "objective": total_objective(est, ctx)})

@@ -36,7 +36,7 @@ tuning grid (searched on the training recordings by :mod:`danae_lite.research.ba
 from __future__ import annotations
 
 import os
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -45,6 +45,7 @@ from numpy.typing import ArrayLike, NDArray
 from scipy.spatial.transform import Rotation
 
 from ..core.angles import G, quat_to_euler
+from ..core.networks import in_processes, threads_per_process
 from .memo import RunMemo, digest
 
 Array = NDArray[np.float64]
@@ -209,28 +210,55 @@ memo = RunMemo(2 << 30)
 """Filter outputs kept by :func:`run_filter` (2 GiB: every distinct run of a chapter's grid searches)."""
 
 
+def _run_checked(name: str, g: Array, a: Array, m: Array | None, fs: float, params: dict[str, Any]) -> Array:
+    """A worker process's part of :func:`run_many`: one run, nothing stored."""
+    return FILTERS[name].run(g, a, m, fs, **params)
+
+
+def run_many(calls: Sequence[tuple[str, ArrayLike, ArrayLike, ArrayLike | None, float, dict[str, Any]]], *,
+             jobs: int = 1) -> list[Array]:
+    """:func:`run_filter` for each ``(name, gyro, acc, mag, fs, params)`` of ``calls``, in order.
+
+    The libraries run one sample at a time on one core; with ``jobs`` > 1 the runs that
+    :data:`memo` does not hold are computed in that many worker processes
+    (:func:`~danae_lite.core.networks.in_processes`, one torch thread each) and stored here:
+    a grid search is where the other cores help. The outputs are the same either way."""
+    for name, *_ in calls:
+        if name not in FILTERS:
+            raise ValueError(f"unknown filter {name!r}; choose one of {', '.join(FILTERS)}")
+    checked = [(name, *_check(g, a, m, fs), float(fs), dict(params)) for name, g, a, m, fs, params in calls]
+    keys = [(name, fs, tuple(sorted((k, repr(v)) for k, v in params.items())), digest(g, a, m))
+            for name, g, a, m, fs, params in checked]
+    out: list[Array | None] = [memo.get(k) for k in keys]
+    todo = [i for i, found in enumerate(out) if found is None]
+    if jobs > 1 and len(todo) > 1:
+        runs = in_processes(_run_checked, [checked[i] for i in todo], processes=jobs,
+                            threads=threads_per_process(jobs))
+    else:
+        runs = (_run_checked(*checked[i]) for i in todo)
+    for i, q in zip(todo, runs):
+        memo.put(keys[i], q)
+        out[i] = q
+    return [q for q in out if q is not None]
+
+
 def run_filter(name: str, gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs: float, **params: Any) -> Array:
     """Run library filter ``name`` (see :data:`FILTERS`); returns (N, 4) ``[x, y, z, w]``,
     body -> NWU. A run made before in this process with the same data and parameters is
     returned from :data:`memo` (a copy)."""
-    try:
-        spec = FILTERS[name]
-    except KeyError:
-        raise ValueError(f"unknown filter {name!r}; choose one of {', '.join(FILTERS)}") from None
-    g, a, m = _check(gyro, acc, mag, fs)
-    key = (name, float(fs), tuple(sorted((k, repr(v)) for k, v in params.items())), digest(g, a, m))
-    found = memo.get(key)
-    if found is None:
-        found = spec.run(g, a, m, fs, **params)
-        memo.put(key, found)
-    return found
+    return run_many([(name, gyro, acc, mag, fs, params)])[0]
+
+
+def to_euler(name: str, q_xyzw: Array) -> Array:
+    """Filter ``name``'s quaternions (N, 4) as (N, 3) Euler angles (roll, pitch, yaw) [rad],
+    intrinsic ZYX; yaw is NaN for filters without a heading reference (RIANN)."""
+    e = quat_to_euler(q_xyzw)
+    if not FILTERS[name].has_yaw:
+        e[:, 2] = np.nan
+    return e
 
 
 def filter_euler(name: str, gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs: float,
                  **params: Any) -> Array:
-    """:func:`run_filter` as (N, 3) Euler angles (roll, pitch, yaw) [rad], intrinsic ZYX;
-    yaw is NaN for filters without a heading reference (RIANN)."""
-    e = quat_to_euler(run_filter(name, gyro, acc, mag, fs, **params))
-    if not FILTERS[name].has_yaw:
-        e[:, 2] = np.nan
-    return e
+    """:func:`run_filter` as Euler angles (:func:`to_euler`)."""
+    return to_euler(name, run_filter(name, gyro, acc, mag, fs, **params))
