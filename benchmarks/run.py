@@ -18,7 +18,7 @@ Everything runs on one simulated recording (the simulator's hand-held scenario, 
    that whole paper-settings epoch (``paper_epoch_50k_s``), the arithmetic rate it achieves
    (``train_gflops``: 3x the forward FLOPs per window, counted from the layer shapes) and
    the machine's peak for a 2048x2048 float32 matmul on the same threads (``matmul_gflops``).
-4. **DANAE inference** -- whole-recording batched :func:`danae_lite.core.train.predict` (ms and
+4. **DANAE inference** -- whole-recording batched :func:`danae_lite.core.inference.predict` (ms and
    µs per sample) and the streaming cost per sample: the paper network run once per new
    sample on the latest 20-sample window (batch 1, ``torch.no_grad``, 1 thread) -- this is
    ``danae_infer_ms_per_sample`` -- and, when :mod:`danae_lite.research.streaming` is present, the
@@ -64,7 +64,8 @@ from danae_lite.core.seeding import default_device
 from danae_lite.core.kalman import KFConfig, run_kf
 from danae_lite.core.simulate import simulate
 from danae_lite.core.model import DanaePaper
-from danae_lite.core.train import TrainConfig, _default_threads, predict, train
+from danae_lite.core.inference import predict
+from danae_lite.core.train import TrainConfig, _default_threads, train
 
 KF_TARGET = 250_000.0
 """Samples per second the KF should reach (informative only)."""
@@ -402,36 +403,17 @@ def paper_stream(net: Any, x: np.ndarray, n: int, warmup: int) -> dict[str, Any]
                 delay_samples=L - 1, delay_ms=(L - 1) * PERIOD_MS)
 
 
-def with_library_convolutions(net: Any) -> Any:
-    """A copy of ``net`` whose matrix-product convolutions (:mod:`danae_lite.core.gemm_conv`) are
-    replaced by torch's own ``nn.Conv1d`` / ``nn.ConvTranspose1d`` holding the same parameters
-    (the model runs a plain layer channels-first, transposing around it)."""
-    from torch import nn
-
-    from danae_lite.core.gemm_conv import ChannelsLastConv1d, ChannelsLastConvTranspose1d
-
-    plain = copy.deepcopy(net)
-    for name, layer in list(plain.named_children()):
-        if isinstance(layer, (ChannelsLastConv1d, ChannelsLastConvTranspose1d)):
-            cls = nn.Conv1d if isinstance(layer, ChannelsLastConv1d) else nn.ConvTranspose1d
-            lib = cls(layer.in_channels, layer.out_channels, layer.kernel_size, padding=layer.padding,
-                      dilation=layer.dilation)
-            lib.load_state_dict(layer.state_dict())
-            setattr(plain, name, lib.to(next(layer.parameters()).device))
-    return plain
-
-
 def bench_predict_paths(result: Any, x: np.ndarray, n: int) -> dict[str, Any]:
     """``predict`` over ``n`` samples with the package's convolutions and with torch's own, side
     by side in one run on this CPU (best of 2 each, alternated), and how far apart their
     predictions are [rad] (float32 rounding: the same sums in another order)."""
-    nets = {"gemm": result.model, "library": with_library_convolutions(result.model)}
-    times: dict[str, list[float]] = {k: [] for k in nets}
+    paths = {"gemm": "matmul", "library": "torch"}
+    times: dict[str, list[float]] = {k: [] for k in paths}
     preds: dict[str, np.ndarray] = {}
     for _ in range(2):  # alternated, so that a slow minute of the machine hits both
-        for key, net in nets.items():
+        for key, conv in paths.items():
             t0 = time.perf_counter()
-            preds[key] = predict(net, x[:n])
+            preds[key] = predict(result, x[:n], convolutions=conv)
             times[key].append(time.perf_counter() - t0)
     gemm_s, lib_s = min(times["gemm"]), min(times["library"])
     diff = float(np.abs(preds["gemm"] - preds["library"]).max())

@@ -21,7 +21,7 @@ chapter setup, execution and the command line sit at the top.
 * :mod:`~danae_lite.core.windows`      windows and stitching
 * :mod:`~danae_lite.core.model`        the DANAE networks; :mod:`~danae_lite.core.gemm_conv` their convolutions as matrix products
 * :mod:`~danae_lite.core.seeding`      seeds and device; :mod:`~danae_lite.core.train_types` the training settings and result
-* :mod:`~danae_lite.core.train`        the one training loop and the one batch predict path
+* :mod:`~danae_lite.core.train`        the one training loop; :mod:`~danae_lite.core.inference` the one batch predict path
 * :mod:`~danae_lite.core.checkpoints`  one file per trained network
 * :mod:`~danae_lite.core.networks`     many trainings at once: worker processes and the network cache
 * :mod:`~danae_lite.core.paper_danae`  the paper's DANAE as one estimator (a network per angle and seed)

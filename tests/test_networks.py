@@ -7,7 +7,8 @@ import pytest
 import torch
 
 from danae_lite.core import networks, pipeline, simulate
-from danae_lite.core.train import TrainConfig, predict
+from danae_lite.core.inference import predict
+from danae_lite.core.train import TrainConfig
 
 
 @pytest.fixture(scope="module")

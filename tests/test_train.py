@@ -9,7 +9,8 @@ from conftest import assert_close_scaled
 from danae_lite.core.seeding import default_device
 from danae_lite.core.model import DanaeBig, DanaePaper
 from danae_lite.core.checkpoints import CheckpointError
-from danae_lite.core.train import TrainConfig, TrainResult, load, predict, save, train
+from danae_lite.core.inference import predict
+from danae_lite.core.train import TrainConfig, TrainResult, load, save, train
 
 NOISE = 0.05  # rad
 
@@ -81,6 +82,39 @@ def test_predict_shapes_and_stitching(trained):
     assert_close_scaled(predict(trained, x, batch_size=7), over, rtol=11 * 384 * 2.0**-24)
     with pytest.raises(ValueError, match="stitch"):
         predict(trained, x, stitch="median")
+    with pytest.raises(ValueError, match="tiles never overlap"):
+        predict(trained, x, stitch="tiles", stride=4)
+    with pytest.raises(ValueError, match="convolutions"):
+        predict(trained, x, convolutions="fft")
+
+
+def test_torch_convolutions_match_the_trained_matrix_products(trained):
+    # the same network with torch's layers and with the matrix-product layers it was trained
+    # with: the same sums in another order. 11 layers of sums of at most 384 float32 products
+    # (128 channels x 3 taps): 11 * 384 * 2**-24 relative to the output's scale at worst
+    x, _ = recording(613, 0.0, seed=5)
+    trained.model.train(True)
+    torch_path = predict(trained, x)
+    assert_close_scaled(predict(trained, x, convolutions="matmul"), torch_path, rtol=11 * 384 * 2.0**-24)
+    assert trained.model.training  # the network's own mode and layers are left as they were
+    assert type(trained.model.e1).__name__ == "ChannelsLastConv1d"
+    trained.model.eval()
+
+
+@pytest.mark.parametrize("stride", [2, 4, 7])
+def test_strided_prediction_is_the_mean_of_its_windows(trained, stride):
+    # reference: each chosen window predicted on its own (stitch="tiles" on a one-window
+    # recording), then every sample averaged over the windows that cover it, by a loop
+    from danae_lite.core.windows import overlap_starts
+
+    x, _ = recording(233, 0.3, seed=9)
+    starts = overlap_starts(len(x), 20, stride)
+    total, count = np.zeros(len(x)), np.zeros(len(x))
+    for s in starts:
+        total[s : s + 20] += predict(trained, x[s : s + 20], stitch="tiles")[:, 0]
+        count[s : s + 20] += 1
+    # one window per forward pass against 256: BLAS may sum the products in another order
+    assert_close_scaled(predict(trained, x, stride=stride)[:, 0], total / count, rtol=11 * 384 * 2.0**-24)
 
 def test_determinism_same_seed_bit_identical():
     xs, ys = dataset((400, 300))

@@ -6,6 +6,7 @@ from hypothesis import strategies as st
 
 from danae_lite.core.windows import (
     Tiling,
+    overlap_starts,
     sliding_windows,
     stitch_overlap_average,
     stitch_tiles,
@@ -96,6 +97,8 @@ def test_tiles_authors_range(n, n_windows, tail):
 
 
 def test_tiles_too_short():
+    with pytest.raises(ValueError, match="uncovered"):
+        overlap_starts(100, 20, 21)
     with pytest.raises(ValueError, match="N=10"):
         tile_windows(np.zeros(10), 20)
 
@@ -144,3 +147,50 @@ def test_overlap_average_counts():
 def test_overlap_average_wrong_total():
     with pytest.raises(ValueError, match="n_total=30"):
         stitch_overlap_average(np.zeros((5, 20)), 30)
+
+
+@pytest.mark.parametrize("n, length, stride", [(20, 20, 4), (21, 20, 4), (45, 20, 4), (47, 20, 5), (30, 3, 3),
+                                               (100, 64, 4), (7, 3, 1)])
+def test_overlap_starts_cover_every_sample(n, length, stride):
+    starts = overlap_starts(n, length, stride)
+    assert starts[0] == 0 and starts[-1] == n - length and (np.diff(starts) >= 1).all()
+    assert (np.diff(starts)[:-1] == stride).all()  # only the last step may be shorter
+    count = np.zeros(n)
+    for s in starts:
+        count[s : s + length] += 1
+    assert count.min() >= 1
+    if n >= 3 * length:  # interior samples: ceil(L / s) windows
+        assert count[length : n - length].min() == -(-length // stride)
+
+
+@pytest.mark.parametrize("n, length, stride", [(45, 20, 4), (47, 20, 5), (300, 20, 4), (30, 2, 2)])
+def test_strided_overlap_average_matches_brute_force(n, length, stride):
+    rng = np.random.default_rng(n + stride)
+    starts = overlap_starts(n, length, stride)
+    pred = rng.normal(size=(len(starts), length, 2))  # arbitrary, inconsistent predictions
+    expected, count = np.zeros((n, 2)), np.zeros(n)
+    for j, s in enumerate(starts):
+        for k in range(length):
+            expected[s + k] += pred[j, k]
+            count[s + k] += 1
+    np.testing.assert_allclose(stitch_overlap_average(pred, n, starts), expected / count[:, None], rtol=1e-12)
+
+
+def test_default_starts_are_every_window_bit_for_bit():
+    # stride 1 through explicit starts: the same additions in the same order, the same bits
+    n, length = 137, 20
+    pred = np.random.default_rng(1).normal(size=(n - length + 1, length, 3))
+    assert np.array_equal(stitch_overlap_average(pred, n), stitch_overlap_average(pred, n, overlap_starts(n, length)))
+
+
+def test_overlap_starts_errors():
+    with pytest.raises(ValueError, match="stride"):
+        overlap_starts(100, 20, 0)
+    with pytest.raises(ValueError, match="uncovered"):
+        overlap_starts(100, 20, 21)
+    with pytest.raises(ValueError, match="N=10"):
+        overlap_starts(10, 20, 4)
+    with pytest.raises(ValueError, match="distinct"):
+        stitch_overlap_average(np.zeros((3, 20)), 60, np.array([0, 0, 40]))
+    with pytest.raises(ValueError, match="outside"):
+        stitch_overlap_average(np.zeros((2, 20)), 30, np.array([0, 20]))

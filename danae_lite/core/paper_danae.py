@@ -6,7 +6,7 @@ and the leaderboard's ``danae`` (:class:`danae_lite.research.baselines.Danae`). 
 one network per seed (:func:`danae_lite.core.networks.train_networks`) with the filter's estimate of
 that angle as input and the ground truth of the same angle as target, one array per training
 recording so that no window crosses two recordings; it predicts with the overlap average of
-:func:`danae_lite.core.train.predict` (or the paper's tiles).
+:func:`danae_lite.core.inference.predict` (or the paper's tiles).
 
 Targets: ``"raw"``, the ground-truth angle as recorded (the paper's; yaw in [-π, π) while the
 KF's yaw runs on), or ``"continuous"``, the truth moved next to the filter's unwrapped angle,
@@ -24,7 +24,8 @@ from numpy.typing import NDArray
 
 from .angles import ANGLES, wrap
 from .networks import train_networks
-from .train import TrainConfig, TrainResult, predict
+from .inference import predict
+from .train import TrainConfig, TrainResult
 
 Array = NDArray[np.float64]
 
@@ -95,16 +96,17 @@ class PaperDanae:
         self.seconds_ = float(sum(r.seconds for r in self.results_.values()))
         return self
 
-    def predict(self, est: Array, *, stitch: str = "overlap") -> list[Array]:
+    def predict(self, est: Array, *, stitch: str = "overlap", stride: int = 1) -> list[Array]:
         """Denoised roll, pitch, yaw (N, 3) [rad] of one recording's filter estimate ``est``
         (N, 3), one array per seed; NaN for an angle without a network (and, with
-        ``stitch="tiles"``, on the samples the tiles leave uncovered)."""
+        ``stitch="tiles"``, on the samples the tiles leave uncovered). ``stride``: step between
+        the overlapping windows [samples] (:func:`~danae_lite.core.inference.predict`)."""
         out = []
         for seed in self.seeds:
             e = np.full_like(est, np.nan, dtype=float)
             for a in self.angles:
                 k = ANGLES.index(a)
-                e[:, k] = predict(self.results_[(a, seed)], est[:, k], stitch=stitch)[:, 0]
+                e[:, k] = predict(self.results_[(a, seed)], est[:, k], stitch=stitch, stride=stride)[:, 0]
             if self.targets == "continuous":  # raw targets: the network's output as it is (the paper's)
                 e[:, 2] = wrap(e[:, 2])
             out.append(e)

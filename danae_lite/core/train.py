@@ -1,4 +1,4 @@
-"""Training DANAE, choosing the best state on held-out windows, predicting.
+"""Training DANAE and choosing the best state on held-out windows (predicting: :mod:`danae_lite.core.inference`).
 
 The paper trains with Adam (lr 0.002, batch 16) on all stride-1 windows of the training
 recordings, minimising the MSE between the network output and the ground-truth angles
@@ -39,10 +39,10 @@ import torch
 from .checkpoints import load, save  # chapter 3 imports them from here (danae_lite.core.train)
 from .model import DanaeBase, build_model
 from .seeding import default_device, seed_everything
-from .train_types import TrainConfig, TrainResult, network_of
-from .windows import sliding_windows, stitch_overlap_average, stitch_tiles, tile_windows, windows_from_recordings
+from .train_types import TrainConfig, TrainResult
+from .windows import sliding_windows, windows_from_recordings
 
-__all__ = ["TrainConfig", "TrainResult", "load", "predict", "save", "train", "validation_tail"]
+__all__ = ["TrainConfig", "TrainResult", "load", "save", "train", "validation_tail"]
 
 HISTORY_COLUMNS = ["step", "epoch", "train_loss", "val_loss"]
 """Columns of :attr:`TrainResult.history`, one row per validation check."""
@@ -574,66 +574,3 @@ def train(
                        best_val_loss=float(best_val) if data.has_val else float("nan"), seconds=seconds,
                        steps=steps, n_train_windows=data.n_train, n_val_windows=data.n_val, device=str(device),
                        stopped_early=stopped_early)
-
-
-# ---------------------------------------------------------------------------------------
-# inference
-# ---------------------------------------------------------------------------------------
-@torch.no_grad()
-def predict(
-    model_or_result: DanaeBase | TrainResult,
-    x: np.ndarray,
-    *,
-    stitch: str = "overlap",
-    batch_size: int = 256,
-    window: int | None = None,
-    num_threads: int | None = None,
-) -> np.ndarray:
-    """Denoise one recording window by window and stitch the windows back together.
-
-    Parameters
-    ----------
-    model_or_result : DanaeBase or TrainResult
-    x : ndarray, shape (N,) or (N, C_in)
-        Noisy input, e.g. the KF roll estimate of the test recording (rad), ``N >= window``.
-    stitch : {"overlap", "tiles"}
-        ``"overlap"``: every stride-1 window is predicted and each sample is the mean of the
-        predictions covering it (:func:`~danae_lite.core.windows.stitch_overlap_average`); all
-        samples are covered. ``"tiles"``: the paper's non-overlapping windows from sample 0
-        (:func:`~danae_lite.core.windows.stitch_tiles`); the last ``N mod window`` samples are NaN.
-    batch_size : int
-        Windows per forward pass (256 keeps a batch's activations in the CPU caches).
-    window : int, optional
-        Window length; default ``net.window`` (the training window).
-    num_threads : int, optional
-        CPU threads for torch during the call; default ``torch.get_num_threads()``, as in
-        :class:`TrainConfig`.
-
-    Returns
-    -------
-    ndarray of float64, shape (N, C_out)
-        Denoised signal (computed in float32), in the units of the training targets.
-    """
-    net = network_of(model_or_result)
-    window = net.window if window is None else int(window)
-    x = as_2d(x, "x")
-    n = len(x)
-    if stitch == "overlap":
-        wins = sliding_windows(x, window)
-    elif stitch == "tiles":
-        wins = tile_windows(x, window).windows
-    else:
-        raise ValueError(f"stitch={stitch!r}: choose 'overlap' or 'tiles'")
-    p = next(net.parameters())
-    was_training = net.training
-    net.eval()
-    preds = []
-    try:
-        with TorchSettings(num_threads or _default_threads()):
-            for i in range(0, len(wins), batch_size):
-                chunk = torch.from_numpy(wins[i : i + batch_size].transpose(0, 2, 1).copy())
-                preds.append(net(chunk.to(device=p.device, dtype=p.dtype)).transpose(1, 2).cpu().numpy())
-    finally:
-        net.train(was_training)
-    pred = np.concatenate(preds).astype(np.float64)  # (n_windows, L, C_out)
-    return stitch_overlap_average(pred, n) if stitch == "overlap" else stitch_tiles(pred, n)

@@ -13,7 +13,9 @@ no window ever spans two recordings. For testing there are two ways back to a se
   (:attr:`Tiling.tail`), never dropped silently.
 * :func:`sliding_windows` (stride 1) + :func:`stitch_overlap_average` -- every sample is
   the average of the predictions of all windows that contain it (``L`` of them in the
-  interior, fewer near the ends). Every sample is covered.
+  interior, fewer near the ends). Every sample is covered. With a stride ``s``
+  (:func:`overlap_starts`) ``ceil(L / s)`` windows cover an interior sample, for about
+  ``1/s`` of the work.
 """
 from __future__ import annotations
 
@@ -26,6 +28,7 @@ from numpy.lib.stride_tricks import sliding_window_view
 __all__ = [
     "Tiling",
     "sliding_windows",
+    "overlap_starts",
     "stitch_overlap_average",
     "stitch_tiles",
     "tile_windows",
@@ -219,42 +222,83 @@ def stitch_tiles(pred_windows: np.ndarray, n_total: int) -> np.ndarray:
     return out
 
 
-def stitch_overlap_average(pred_windows: np.ndarray, n_total: int) -> np.ndarray:
-    """Average the predictions of all stride-1 windows that contain each sample.
-
-    Window ``j`` covers samples ``j .. j+L-1``; sample ``i`` is covered by windows
-    ``max(0, i-L+1) .. min(i, n_windows-1)`` -- ``L`` windows in the interior, down to one
-    at either end -- and the result is the plain mean of their predictions for sample ``i``.
-
-    Vectorised over windows: one slice-add per position inside the window (``L`` numpy
-    additions in all), no Python loop over samples.
+def overlap_starts(n_total: int, length: int, stride: int = 1) -> np.ndarray:
+    """Starts of the overlapping windows that cover a recording: ``0, s, 2s, ...`` and, when
+    the last of those does not end at sample ``N``, one more window ending there.
 
     Parameters
     ----------
-    pred_windows : ndarray, shape (N - L + 1, L, ...)
-        Prediction for each stride-1 window of :func:`sliding_windows`, in order.
     n_total : int
-        Length ``N`` of the recording; must equal ``n_windows + L - 1``.
+        Length ``N`` of the recording, ``N >= length``.
+    length : int
+        Window length ``L``.
+    stride : int
+        Step ``s`` between window starts, ``1 <= s <= L`` (1: every window, as
+        :func:`sliding_windows`; a longer step would leave samples uncovered).
+
+    Returns
+    -------
+    ndarray of int, increasing
+        Every sample lies in at least one window, ``ceil(L / s)`` of them in the interior.
+    """
+    _check_length(length, stride)
+    if stride > length:
+        raise ValueError(f"stride={stride} is longer than the window length {length}: samples would be left uncovered")
+    if n_total < length:
+        raise ValueError(f"recording has N={n_total} samples, fewer than the window length {length}")
+    starts = np.arange(0, n_total - length + 1, stride)
+    return starts if starts[-1] == n_total - length else np.append(starts, n_total - length)
+
+
+def stitch_overlap_average(pred_windows: np.ndarray, n_total: int, starts: np.ndarray | None = None) -> np.ndarray:
+    """Average the predictions of all windows that contain each sample.
+
+    Window ``j`` starts at ``starts[j]`` and covers samples ``starts[j] .. starts[j]+L-1``;
+    every sample is the plain mean of the predictions of the windows that contain it. With
+    the default stride-1 windows (``starts = 0 .. N-L``) that is ``L`` windows in the
+    interior, down to one at either end.
+
+    Vectorised over windows: one indexed addition per position inside the window (``L``
+    numpy additions in all), no Python loop over samples.
+
+    Parameters
+    ----------
+    pred_windows : ndarray, shape (n_windows, L, ...)
+        Prediction for each window, in the order of ``starts``.
+    n_total : int
+        Length ``N`` of the recording.
+    starts : ndarray of int, optional
+        Distinct starts of the windows (e.g. :func:`overlap_starts` with a stride); default
+        every stride-1 window of :func:`sliding_windows`, ``0 .. N-L``.
 
     Returns
     -------
     ndarray of float, shape (N, ...)
-        Every sample is covered (no NaN unless the predictions contain NaN).
+        NaN only where the predictions are NaN or no window covers a sample.
     """
     pred_windows = np.asarray(pred_windows)
     if pred_windows.ndim < 2:
         raise ValueError(f"expected windows of shape (n_windows, L, ...), got {pred_windows.shape}")
     n_windows, length = pred_windows.shape[:2]
-    if n_windows + length - 1 != n_total:
-        raise ValueError(
-            f"{n_windows} stride-1 windows of length {length} come from {n_windows + length - 1} "
-            f"samples, not n_total={n_total}"
-        )
+    if starts is None:
+        if n_windows + length - 1 != n_total:
+            raise ValueError(
+                f"{n_windows} stride-1 windows of length {length} come from {n_windows + length - 1} "
+                f"samples, not n_total={n_total}"
+            )
+        starts = np.arange(n_windows)
+    starts = np.asarray(starts)
+    if starts.shape != (n_windows,) or len(np.unique(starts)) != n_windows:
+        raise ValueError(f"starts: expected {n_windows} distinct window starts, got shape {starts.shape}")
+    if n_windows and (starts.min() < 0 or starts.max() + length > n_total):
+        raise ValueError(f"a window starting at {starts.min()} or {starts.max()} (length {length}) "
+                         f"lies outside the recording of {n_total} samples")
     dtype = np.result_type(pred_windows.dtype, np.float32)
     total = np.zeros((n_total, *pred_windows.shape[2:]), dtype=np.float64)
-    for k in range(length):  # position k of window j is sample j + k
-        total[k : k + n_windows] += pred_windows[:, k]
-    i = np.arange(n_total)
-    count = np.minimum.reduce([i + 1, np.full(n_total, length), n_total - i, np.full(n_total, n_windows)])
+    count = np.zeros(n_total)
+    for k in range(length):  # position k of window j is sample starts[j] + k (distinct for one k)
+        total[starts + k] += pred_windows[:, k]
+        count[starts + k] += 1
     count = count.reshape(n_total, *([1] * (pred_windows.ndim - 2)))
-    return (total / count).astype(dtype, copy=False)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        return (total / count).astype(dtype, copy=False)

@@ -386,6 +386,9 @@ class Danae(_OnPaperKF):
     clean_targets : leave the ground truth's glitches out of the loss (default) or train on
         every sample as the paper did.
     angles : the angles that get a network; the others are predicted as NaN.
+    stride : step between the overlapping windows of its predictions [samples]; default
+        :data:`~danae_lite.research.methods.PREDICT_STRIDE`, 1 for every window (chapter 4's
+        :func:`~danae_lite.core.pipeline.reproduce`).
     """
 
     name = "danae"
@@ -393,10 +396,10 @@ class Danae(_OnPaperKF):
     description = "the paper's DANAE per angle on the paper KF's output, glitch-free targets"
 
     def __init__(self, targets: str = "continuous", clean_targets: bool = True,
-                 angles: Sequence[str] = ANGLES) -> None:
+                 angles: Sequence[str] = ANGLES, stride: int = methods.PREDICT_STRIDE) -> None:
         super().__init__()
         self.angles = check_settings(targets, angles)
-        self.targets, self.clean_targets = targets, bool(clean_targets)
+        self.targets, self.clean_targets, self.stride = targets, bool(clean_targets), int(stride)
         if targets == "raw" or not clean_targets:
             self.description = (f"the paper's DANAE per angle on the paper KF's output, {targets} targets, "
                                 f"{'glitch-free' if clean_targets else 'every'} target sample")
@@ -417,7 +420,7 @@ class Danae(_OnPaperKF):
         return self
 
     def predict(self, rec: Recording) -> list[Array]:
-        return self.model.predict(self.kf.raw(rec))
+        return self.model.predict(self.kf.raw(rec), stride=self.stride)
 
 
 def make_method(name: str) -> Method:

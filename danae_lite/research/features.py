@@ -20,8 +20,10 @@ from numpy.typing import NDArray
 from ..core import kalman
 from ..core.recording import Recording
 from .memo import RunMemo, digest
+from .methods import PREDICT_STRIDE
 from .streaming import predict_causal
-from ..core.train import TrainResult, predict
+from ..core.inference import predict
+from ..core.train import TrainResult
 
 Array = NDArray[np.float64]
 
@@ -78,11 +80,12 @@ def network_digest(res: TrainResult) -> str:
 def run_network(res: TrainResult, x: Array) -> Array:
     """Output (N, D) of the trained network ``res`` on a whole recording's inputs ``x`` (N, C):
     a causal network sample by sample over its past (:func:`~danae_lite.research.streaming.predict_causal`),
-    any other one window by window with the overlap average (:func:`~danae_lite.core.train.predict`).
+    any other one with the average of overlapping windows :data:`~danae_lite.research.methods.PREDICT_STRIDE`
+    samples apart (:func:`~danae_lite.core.inference.predict`).
     The same network on the same inputs earlier in this process: the stored output (:data:`memo`)."""
-    key = (network_digest(res), digest(np.asarray(x, dtype=float)))
+    key = (network_digest(res), digest(np.asarray(x, dtype=float)), PREDICT_STRIDE)
     found = memo.get(key)
     if found is None:
-        found = predict_causal(res, x) if res.config.arch == "causal" else predict(res, x)
+        found = predict_causal(res, x) if res.config.arch == "causal" else predict(res, x, stride=PREDICT_STRIDE)
         memo.put(key, found)
     return found
