@@ -36,6 +36,7 @@ chapter setup, execution and the command line sit at the top.
 * :mod:`~danae_lite.research.methods`      the method protocol (:class:`~danae_lite.research.methods.Method`) and its objectives
 * :mod:`~danae_lite.research.memo`         each distinct filter run and network output computed once per process
 * :mod:`~danae_lite.research.filters`      established attitude filters (Fusion, VQF, Madgwick, Mahony, RIANN)
+* :mod:`~danae_lite.research.ahrs_grid`    Madgwick's and Mahony's filters for a whole grid of gains in one pass
 * :mod:`~danae_lite.research.kf_offline`   the KF after the fact: innovations and their NIS, the RTS smoother
 * :mod:`~danae_lite.research.kf_grid`      the paper's KF for a whole grid of settings in one pass (tuning)
 * :mod:`~danae_lite.research.baselines`    classical methods of the leaderboard (tuned KF, low-pass, linear map, ...)

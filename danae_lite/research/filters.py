@@ -31,7 +31,9 @@ magnetometer: its yaw is arbitrary and :func:`filter_euler` returns NaN for it.
 All filters run causally (sample by sample, only the past), as they would on-line; VQF's
 acausal ``offlineVQF`` is not used. Parameters are the libraries' own names; each filter's
 tuning grid (searched on the training recordings by :mod:`danae_lite.research.baselines`) is in
-:data:`FILTERS`.
+:data:`FILTERS`. ``ahrs``'s two filters update in pure Python, one grid point at a time; a grid
+of them on one recording runs in one pass (:mod:`danae_lite.research.ahrs_grid`, equal to the
+library's runs to float64 rounding).
 """
 from __future__ import annotations
 
@@ -46,6 +48,7 @@ from scipy.spatial.transform import Rotation
 
 from ..core.angles import G, quat_to_euler
 from ..core.networks import in_processes, threads_per_process
+from . import ahrs_grid
 from .memo import RunMemo, digest
 
 Array = NDArray[np.float64]
@@ -181,6 +184,22 @@ def riann(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs: float) -> 
     return _wxyz_to_xyzw(np.asarray(q, dtype=float))
 
 
+def _mahony_grid(g: Array, a: Array, m: Array | None, fs: float, params: Sequence[dict[str, Any]]) -> list[Array] | None:
+    """:func:`mahony` for every parameter set at once (:func:`~danae_lite.research.ahrs_grid.mahony_marg`)."""
+    if not ahrs_grid.supported(g, a, m) or any(set(p) - {"k_P", "k_I"} for p in params):
+        return None
+    k_p = [float(p.get("k_P", 1.0)) for p in params]
+    k_i = [float(p.get("k_I", 0.3)) for p in params]
+    return [_enu_to_nwu(_wxyz_to_xyzw(q)) for q in ahrs_grid.mahony_marg(g, a * G, m, fs, k_p, k_i)]
+
+
+def _madgwick_grid(g: Array, a: Array, m: Array | None, fs: float, params: Sequence[dict[str, Any]]) -> list[Array] | None:
+    """:func:`madgwick` for every gain at once (:func:`~danae_lite.research.ahrs_grid.madgwick_marg`)."""
+    if not ahrs_grid.supported(g, a, m) or any(set(p) - {"gain"} for p in params):
+        return None
+    return [_wxyz_to_xyzw(q) for q in ahrs_grid.madgwick_marg(g, a * G, m, fs, [float(p.get("gain", 0.041)) for p in params])]
+
+
 @dataclass(frozen=True)
 class FilterSpec:
     """A library filter: the function, whether its yaw means anything, and its tuning grid."""
@@ -189,6 +208,9 @@ class FilterSpec:
     has_yaw: bool
     grid: dict[str, tuple[Any, ...]] = field(default_factory=dict)
     """Parameter values searched on the training recordings (product of all lists)."""
+    run_grid: Callable[..., list[Array] | None] | None = None
+    """Several parameter sets on one recording in one pass, ``(gyro, acc, mag, fs, [params, ...])``
+    -> outputs as :attr:`run` gives them, or None where it does not apply; None: no such path."""
 
 
 FILTERS: dict[str, FilterSpec] = {
@@ -196,8 +218,9 @@ FILTERS: dict[str, FilterSpec] = {
                                         "magnetic_rejection": (10.0, 20.0, 45.0, 90.0)}),
     "vqf": FilterSpec(vqf, True, {"tauAcc": (0.5, 1.0, 2.0, 3.0, 5.0, 10.0, 20.0, 40.0),
                                   "tauMag": (3.0, 9.0, 30.0, 100.0)}),
-    "madgwick": FilterSpec(madgwick, True, {"gain": (0.005, 0.01, 0.02, 0.041, 0.08, 0.16)}),
-    "mahony": FilterSpec(mahony, True, {"k_P": (0.1, 0.3, 1.0, 3.0, 10.0), "k_I": (0.0003, 0.003, 0.03, 0.3)}),
+    "madgwick": FilterSpec(madgwick, True, {"gain": (0.005, 0.01, 0.02, 0.041, 0.08, 0.16)}, _madgwick_grid),
+    "mahony": FilterSpec(mahony, True, {"k_P": (0.1, 0.3, 1.0, 3.0, 10.0), "k_I": (0.0003, 0.003, 0.03, 0.3)},
+                         _mahony_grid),
     "riann": FilterSpec(riann, False, {}),
 }
 """The library filters by leaderboard name; each grid (product of its lists) is searched jointly
@@ -210,36 +233,47 @@ memo = RunMemo(2 << 30)
 """Filter outputs kept by :func:`run_filter` (2 GiB: every distinct run of a chapter's grid searches)."""
 
 
-def _run_checked(name: str, g: Array, a: Array, m: Array | None, fs: float, params: dict[str, Any]) -> Array:
-    """A worker process's part of :func:`run_many`: one run, nothing stored."""
-    return FILTERS[name].run(g, a, m, fs, **params)
+def _run_group(name: str, g: Array, a: Array, m: Array | None, fs: float, params: list[dict[str, Any]]) -> list[Array]:
+    """One filter on one recording for each parameter set of ``params``: in one pass where the
+    filter has one (:attr:`FilterSpec.run_grid`), else run by run. Nothing stored (a worker
+    process's part of :func:`run_many`)."""
+    spec = FILTERS[name]
+    found = spec.run_grid(g, a, m, fs, params) if spec.run_grid is not None and len(params) > 1 else None
+    return found if found is not None else [spec.run(g, a, m, fs, **p) for p in params]
 
 
 def run_many(calls: Sequence[tuple[str, ArrayLike, ArrayLike, ArrayLike | None, float, dict[str, Any]]], *,
              jobs: int = 1) -> list[Array]:
     """:func:`run_filter` for each ``(name, gyro, acc, mag, fs, params)`` of ``calls``, in order.
 
-    The libraries run one sample at a time on one core; with ``jobs`` > 1 the runs that
-    :data:`memo` does not hold are computed in that many worker processes
-    (:func:`~danae_lite.core.networks.in_processes`, one torch thread each) and stored here:
-    a grid search is where the other cores help. The outputs are the same either way."""
+    The runs that :data:`memo` does not hold are grouped by filter and recording: a group is
+    one pass over the samples where the filter has one for a whole grid (Madgwick, Mahony:
+    :mod:`danae_lite.research.ahrs_grid`). With ``jobs`` > 1 the groups are computed in that
+    many worker processes (:func:`~danae_lite.core.networks.in_processes`, one torch thread
+    each) and stored here: a grid search is where the other cores help."""
     for name, *_ in calls:
         if name not in FILTERS:
             raise ValueError(f"unknown filter {name!r}; choose one of {', '.join(FILTERS)}")
     checked = [(name, *_check(g, a, m, fs), float(fs), dict(params)) for name, g, a, m, fs, params in calls]
-    keys = [(name, fs, tuple(sorted((k, repr(v)) for k, v in params.items())), digest(g, a, m))
-            for name, g, a, m, fs, params in checked]
+    data = [digest(g, a, m) for _, g, a, m, _, _ in checked]
+    keys = [(name, fs, tuple(sorted((k, repr(v)) for k, v in params.items())), d)
+            for (name, _, _, _, fs, params), d in zip(checked, data)]
     out: list[Array | None] = [memo.get(k) for k in keys]
-    todo = [i for i, found in enumerate(out) if found is None]
-    if jobs > 1 and len(todo) > 1:
-        runs = in_processes(_run_checked, [checked[i] for i in todo], processes=jobs,
-                            threads=threads_per_process(jobs))
+    groups: dict[tuple[Any, ...], dict[tuple[Any, ...], int]] = {}  # (filter, fs, data) -> {run: a call}
+    for i, found in enumerate(out):
+        if found is None:
+            groups.setdefault((keys[i][0], keys[i][1], data[i]), {}).setdefault(keys[i], i)
+    tasks = [(*checked[next(iter(runs.values()))][:5], [checked[i][5] for i in runs.values()]) for runs in groups.values()]
+    if jobs > 1 and len(tasks) > 1:
+        results = in_processes(_run_group, tasks, processes=jobs, threads=threads_per_process(jobs))
     else:
-        runs = (_run_checked(*checked[i]) for i in todo)
-    for i, q in zip(todo, runs):
-        memo.put(keys[i], q)
-        out[i] = q
-    return [q for q in out if q is not None]
+        results = (_run_group(*t) for t in tasks)
+    computed: dict[tuple[Any, ...], Array] = {}
+    for runs, qs in zip(groups.values(), results):
+        for key, q in zip(runs, qs):
+            memo.put(key, q)
+            computed[key] = q
+    return [found if found is not None else computed[keys[i]] for i, found in enumerate(out)]
 
 
 def run_filter(name: str, gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs: float, **params: Any) -> Array:
