@@ -288,3 +288,15 @@ def test_run_many_groups_a_grid_by_recording_and_keeps_the_order():
     assert filters.memo.misses == 5 and filters.memo.nbytes == sum(q.nbytes for q in out[:4])
     for q, (_, g, a, m, fs, p) in zip(out, calls):
         assert np.abs(q - filters.madgwick(g, a, m, fs, **p)).max() < 1e-9
+
+
+def test_enu_to_nwu_is_scipys_composition_bit_for_bit():
+    # the cache key of a network holds its inputs' bytes: the rotation must give SciPy's bits
+    rng = np.random.default_rng(3)
+    q = rng.normal(size=(20_000, 4))
+    q *= (1 + 1e-9 * rng.normal(size=(20_000, 1))) / np.linalg.norm(q, axis=1, keepdims=True)
+    rec = _moving_noisy(5.0)
+    q_vqf = filters.vqf(rec.gyro, rec.acc, rec.mag, rec.fs)  # a real filter's output, in NWU
+    for x in (q, q_vqf, q * 3.0):
+        scipy_way = (filters._ENU_TO_NWU * Rotation.from_quat(x)).as_quat()
+        np.testing.assert_array_equal(filters._enu_to_nwu(x), scipy_way)
