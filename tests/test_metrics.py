@@ -144,3 +144,43 @@ def test_compare_with_paper_layout():
     two = compare_with_paper(ours[["roll", "pitch"]], "ucs", "danae")
     assert list(two.columns.get_level_values(0).unique()) == ["roll", "pitch"]
     assert two.loc["mean_dev", ("pitch", "paper")] == 0.0147
+
+
+def _wrapped_rms(err, c):
+    from danae_lite.core.angles import wrap
+    return float(np.sqrt(np.mean(wrap(np.asarray(err) - c) ** 2)))
+
+
+@pytest.mark.parametrize("seed", range(6))
+def test_best_constant_offset_is_the_minimum_scipy_finds(seed):
+    # reference: SciPy's bounded scalar minimiser started in each of 720 half-degree cells
+    # of the circle (the wrapped RMS is piecewise smooth), the best of them kept
+    from scipy.optimize import minimize_scalar
+
+    from danae_lite.core.metrics import best_constant_offset
+
+    rng = np.random.default_rng(seed)
+    # spread, skewed, two-cluster errors: where a circular mean is not the RMS minimiser
+    err = np.concatenate([rng.normal(2.5, 0.4, 300), rng.normal(-2.0, 0.8, 200 + 50 * seed),
+                          rng.uniform(-np.pi, np.pi, 100)])
+    offset, rms = best_constant_offset(err)
+    edges = np.linspace(-np.pi, np.pi, 721)
+    ref = min(minimize_scalar(lambda c: _wrapped_rms(err, c), bounds=(lo, hi), method="bounded",
+                              options={"xatol": 1e-10}).fun for lo, hi in zip(edges[:-1], edges[1:]))
+    assert rms == pytest.approx(_wrapped_rms(err, offset), rel=1e-12)  # the RMS it reports
+    assert rms <= ref + 1e-9 and rms == pytest.approx(ref, abs=1e-9)
+    assert rms <= _wrapped_rms(err, 0.0)                                # never worse than raw
+    circular = float(np.angle(np.mean(np.exp(1j * err))))
+    assert rms <= _wrapped_rms(err, circular) + 1e-12
+
+
+def test_best_constant_offset_simple_cases():
+    from danae_lite.core.metrics import best_constant_offset
+
+    # a constant error is removed exactly; a cluster around ±π is found across the cut
+    assert best_constant_offset(np.full(10, 0.7)) == (pytest.approx(0.7), pytest.approx(0.0, abs=1e-12))
+    err = np.array([3.0, -3.0, 3.1, -3.1])
+    offset, rms = best_constant_offset(err)
+    assert abs(abs(offset) - np.pi) < 1e-12 and rms == pytest.approx(np.sqrt((0.1415927**2 + 0.0415927**2) / 2), rel=1e-5)
+    with pytest.raises(ValueError, match="finite"):
+        best_constant_offset([0.1, np.nan])

@@ -30,12 +30,13 @@ import numpy as np
 import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
-from .angles import ANGLES, angle_diff
+from .angles import ANGLES, angle_diff, wrap
 
 __all__ = [
     "METRICS",
     "PAPER",
     "PAPER_CLAIMED_RMSE_REDUCTION",
+    "best_constant_offset",
     "compare_with_paper",
     "errors",
     "max_dev",
@@ -117,6 +118,45 @@ def rmse(err: ArrayLike) -> NDArray[np.float64] | float:
     """Root-mean-square error ``sqrt(mean e^2)`` [rad] along axis 0 of an error array."""
     e = np.asarray(err, dtype=float)
     return np.sqrt(np.mean(e * e, axis=0))
+
+
+def best_constant_offset(err: ArrayLike) -> tuple[float, float]:
+    """The constant ``c`` [rad] that minimises the RMS of ``wrap(err - c)``, and that RMS [rad].
+
+    The one definition of a "best constant offset" of a wrapped angle error (a yaw error
+    whose frame or reference heading is off by a constant): never worse than the raw error,
+    since ``c = 0`` is a candidate. It is not the circular mean ``angle(mean(exp(i err)))``,
+    which minimises ``mean(1 - cos(err - c))`` instead, and on a spread error can leave
+    more than the raw RMS.
+
+    Exact, in O(N log N): sort the errors ``a_0 <= ... <= a_{N-1}`` in [-π, π). Cutting the
+    circle before ``a_k`` (adding 2π to ``a_0 .. a_{k-1}``) gives one unwrapped
+    representation, whose RMS about its own mean ``m_k`` is
+    ``V_k = mean(x^2) - m_k^2``. For every ``c`` the wrapped errors are one such
+    representation, and ``V_k`` never undercuts the wrapped RMS about ``wrap(m_k)``;
+    so the minimum over ``c`` is ``min_k V_k``, at ``c = wrap(m_k)``.
+
+    Parameters
+    ----------
+    err : array_like, shape (N,)
+        Angle errors [rad], any range (wrapped here); finite.
+
+    Returns
+    -------
+    (offset, rms) : offset in [-π, π) [rad]; the RMS of ``wrap(err - offset)`` [rad].
+    """
+    a = np.sort(wrap(np.asarray(err, dtype=float).ravel()))
+    if a.size == 0 or not np.isfinite(a).all():
+        raise ValueError(f"best_constant_offset needs finite errors, got {a.size} values "
+                         f"({int((~np.isfinite(a)).sum())} not finite)")
+    n = a.size
+    k = np.arange(n)                                             # a_0 .. a_{k-1} moved by +2π
+    shifted = np.concatenate([[0.0], np.cumsum(a)[:-1]])         # sum of a_i, i < k
+    mean = (a.sum() + 2 * np.pi * k) / n
+    mean_sq = (np.sum(a * a) + 4 * np.pi * shifted + 4 * np.pi**2 * k) / n
+    best = int(np.argmin(mean_sq - mean**2))
+    offset = float(wrap(mean[best]))
+    return offset, float(rmse(wrap(a - offset)))
 
 
 def metric_table(
