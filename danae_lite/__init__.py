@@ -52,8 +52,9 @@ chapter setup, execution and the command line sit at the top.
 **Entry points** (``danae_lite/``):
 
 * :mod:`~danae_lite.config`       the run settings, read from flags and ``DANAE_*`` variables (only here)
-* :mod:`~danae_lite.book`         the common first cell of every chapter (``setup``)
+* :mod:`~danae_lite.book`         the common first cell of every chapter (``setup``); ``glue``/``prose``: results in the prose
 * :mod:`~danae_lite.execute`      ``make execute``: re-executes the stale chapters and records each run
+* :mod:`~danae_lite.pages`        the blocks of README.md and the Performance page written from the stored chapters
 * :mod:`~danae_lite.cli`          ``python -m danae_lite reproduce|leaderboard``; :mod:`~danae_lite.cli_data` its data flags -> recordings
 """
 from .core._version import __version__

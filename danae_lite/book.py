@@ -8,13 +8,31 @@ It fixes the things every chapter relies on, in one place:
 * the plotting style of the book (:mod:`danae_lite.core.plots`);
 * torch's CPU threads: torch's own default (every physical core, or ``OMP_NUM_THREADS``).
 
+It also holds the two functions through which a chapter puts a number from its run into its
+prose, so that the number reads the same in the HTML book and in JupyterLab:
+
+* :func:`glue` records a value under a name (through myst-nb's ``glue``, so the stored outputs
+  keep a machine-readable record of every quoted number) and remembers it for :func:`prose`;
+* :func:`prose` displays Markdown whose ``{name}`` / ``{name:.2f}`` fields are filled with the
+  recorded values (Python's format mini-language); a chapter calls it in a cell whose input
+  the book removes and JupyterLab collapses, so both show the sentence with its numbers.
+
 The command that re-executes the chapters and stores their outputs is
 :mod:`danae_lite.execute` (``make execute``); the book only renders those outputs.
 """
 from __future__ import annotations
 
+import re
+import string
+from typing import Any
+
 from .config import DEFAULT_SEED, RunSettings
 from .core.seeding import seed_everything
+
+# values glued by the running chapter, by name (one chapter per kernel; setup() empties it)
+_RECORDED: dict[str, Any] = {}
+# the parts of Markdown that prose() leaves as they are: fenced code, inline code, maths
+_VERBATIM = re.compile(r"^```.*?^```[^\n]*$|`[^`\n]*`|\$\$.*?\$\$|\$[^$\n]+\$", re.S | re.M)
 
 
 def setup(seed: int = DEFAULT_SEED, *, verbose: bool = True) -> RunSettings:
@@ -24,6 +42,7 @@ def setup(seed: int = DEFAULT_SEED, *, verbose: bool = True) -> RunSettings:
 
     plots.use_style()
     seed_everything(seed)
+    _RECORDED.clear()
     import torch
 
     # torch's own thread count stands: every physical core, or OMP_NUM_THREADS when set (make
@@ -35,3 +54,57 @@ def setup(seed: int = DEFAULT_SEED, *, verbose: bool = True) -> RunSettings:
         print(f"mode: {mode} | data: {data} | seed: {cfg.seed} | device: {cfg.device} "
               f"({torch.get_num_threads()} CPU threads, {cfg.jobs} worker process(es))")
     return cfg
+
+
+def glue(name: str, value: Any, display: bool = False) -> None:
+    """Record ``value`` under ``name`` for :func:`prose` and in the stored outputs (myst-nb's
+    ``glue``: an output the book and JupyterLab do not show unless ``display``). A Markdown
+    object is remembered as its Markdown text."""
+    from myst_nb import glue as myst_glue
+
+    markdown = getattr(value, "_repr_markdown_", None)
+    _RECORDED[name] = markdown() if callable(markdown) else value
+    myst_glue(name, value, display=display)
+
+
+def fill(template: str, values: dict[str, Any]) -> str:
+    """``template`` with every ``{name}`` / ``{name:spec}`` field outside code and maths replaced
+    by ``format(values[name], spec)``; code spans, fenced code and ``$...$`` / ``$$...$$`` maths
+    are kept as written (their braces are LaTeX's or Python's, not fields).
+
+    Raises KeyError naming the field when ``values`` has no such name, ValueError for a brace
+    that is not a field."""
+    formatter = string.Formatter()
+    out, last = [], 0
+    for m in _VERBATIM.finditer(template):
+        out.append(_fill_plain(formatter, template[last:m.start()], values))
+        out.append(m.group(0))
+        last = m.end()
+    out.append(_fill_plain(formatter, template[last:], values))
+    return "".join(out)
+
+
+def fields(template: str) -> list[str]:
+    """The names of the fields of ``template`` outside code and maths, in order (see :func:`fill`)."""
+    formatter = string.Formatter()
+    return [name for part in _VERBATIM.split(template) for _, name, _, _ in formatter.parse(part)
+            if name]
+
+
+def _fill_plain(formatter: string.Formatter, text: str, values: dict[str, Any]) -> str:
+    try:
+        return formatter.vformat(text, (), values)
+    except KeyError as err:
+        raise KeyError(f"prose: no value glued under the name {err.args[0]!r} (glue it in an "
+                       f"earlier cell); in {text.strip()[:80]!r}") from None
+    except (ValueError, IndexError) as err:
+        raise ValueError(f"prose: {err} in {text.strip()[:80]!r}; a field is {{name}} or "
+                         "{name:spec} with a glued name") from None
+
+
+def prose(template: str) -> None:
+    """Display ``template`` as Markdown, its fields filled from the values glued so far (see
+    :func:`fill`). The way a chapter writes a sentence that quotes its own results."""
+    from IPython.display import Markdown, display
+
+    display(Markdown(fill(template.strip("\n"), _RECORDED)))

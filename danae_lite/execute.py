@@ -145,6 +145,45 @@ def stale_chapters(paths: Sequence[Path], data_sha256: str | None = None) -> lis
     return [p for p in paths if stale_reason(nbformat.read(p, as_version=4), p.stem, data_sha256) is not None]
 
 
+def chapter_records(paths: Sequence[Path]) -> list[tuple[str, dict[str, Any]]]:
+    """(chapter name, :func:`execution_record`) of each notebook in ``paths``, in order.
+
+    Raises ValueError naming the notebook when one carries no record."""
+    import nbformat
+
+    records = []
+    for path in paths:
+        record = execution_record(nbformat.read(path, as_version=4))
+        if record is None:
+            raise ValueError(f"{path}: no execution record (metadata.danae.execution); run "
+                             "python -m danae_lite.execute first")
+        records.append((Path(path).stem, record))
+    return records
+
+
+def write_pages(root: Path, folder: Path) -> None:
+    """Rewrite the blocks of ``README.md`` and ``book/performance.md`` that quote the stored
+    chapters of ``_toc.yml`` in ``folder`` (:mod:`danae_lite.pages`); names each page that moved.
+
+    Raises ValueError when a chapter carries no execution record or a page lacks its block."""
+    import nbformat
+
+    from . import pages
+
+    if not (root / "book" / "performance.md").is_file():
+        return                                  # not the book's repository: nothing to quote
+    paths = [folder / f"{c}.ipynb" for c in toc_chapters(root)]
+    blocks = [(root / "book" / "performance.md", "chapter-times",
+               pages.times_markdown(chapter_records(paths)))]
+    chapter6 = folder / "06_beyond_the_paper.ipynb"
+    if chapter6.is_file():
+        blocks.append((root / "README.md", "results",
+                       pages.results_markdown(nbformat.read(chapter6, as_version=4))))
+    for page, name, content in blocks:
+        if pages.update_block(page, name, content):
+            print(f"{page.relative_to(root)}: block {name!r} rewritten from the stored chapters")
+
+
 def stamp(nb: MutableMapping[str, Any], *, seconds: float, data_dir: str | os.PathLike[str] | None,
           fast: bool, executed: datetime | None = None, networks: tuple[int, int] | None = None,
           data_sha256: str = "") -> dict[str, Any]:
@@ -547,11 +586,17 @@ def main(argv: Sequence[str] | None = None) -> int:
                              f"${JOBS_ENV}, else 1 (make execute: one per core). The outputs do not depend on it")
     parser.add_argument("--timeout", metavar="S", type=float, default=3600.0,
                         help="limit for each cell in seconds (default 3600)")
+    parser.add_argument("--pages", action="store_true",
+                        help="execute nothing: rewrite the blocks of README.md and book/performance.md that "
+                             "quote the stored chapters (every run in place does it too)")
     args = parser.parse_args(argv)
 
     try:
         root = find_root()
         folder = Path(args.notebooks_dir).resolve() if args.notebooks_dir else root / "notebooks"
+        if args.pages:
+            write_pages(root, folder)
+            return 0
         chapters = toc_chapters(root)
         if not chapters:
             raise BookExecutionError(f"{root / '_toc.yml'} lists no chapter under notebooks/")
@@ -573,6 +618,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                          cache_dir=Path(cold) if args.cold else settings.cache_root, cache_gb=settings.cache_gb,
                          fast=settings.fast, jobs=settings.jobs, out_dir=args.out,
                          timeout=args.timeout if args.timeout > 0 else None)
+        if args.out is None:
+            try:
+                write_pages(root, folder)
+            except ValueError as exc:           # the run itself succeeded: say why, go on
+                print(f"pages not rewritten: {exc}", file=sys.stderr)
     except (BookExecutionError, FileNotFoundError, ValueError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2

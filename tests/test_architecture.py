@@ -195,7 +195,8 @@ def test_layers_are_the_folders():
     """Every module sits in a layer folder or is one of the few entry points; the layer folders
     hold nothing else (no deeper folders to hide a module in)."""
     entry = {n for n in modules(PACKAGE) if "." not in n}
-    assert entry == {"__init__", "__main__", "book", "cli", "cli_data", "config", "execute", *LAYERS}
+    assert entry == {"__init__", "__main__", "book", "cli", "cli_data", "config", "execute", "pages",
+                     *LAYERS}
     assert all(len(n.split(".")) <= 2 for n in modules(PACKAGE))
     assert {n.split(".")[0] for n in modules(PACKAGE) if "." in n} == set(LAYERS)
 

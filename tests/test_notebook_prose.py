@@ -1,12 +1,18 @@
 """House rules for what a chapter says on the page: numbers from a run are glued, not typed;
 code fits the page; every chapter ends with exercises (solutions behind a toggle) and a summary.
 
+A chapter's prose is its Markdown cells and the templates of its ``prose(...)`` cells
+(:func:`danae_lite.book.prose`: Markdown whose ``{name:.3f}`` fields are filled with values
+glued earlier in the run; the book removes the cell's input and JupyterLab collapses it, so
+both show the filled Markdown).
+
 The number rule: a figure in a chapter's prose that equals, at the precision it is written with,
-a number its stored outputs print must come from the run through myst-nb ``glue``
-(``{glue:text}`name:.3f```), so the prose cannot drift from the outputs and reads correctly
-on the simulator too. A number that is a setting or a published value is not a result: it is
-allowed when it is written literally in the chapter's code, in ``danae_lite`` or in the paper.
+a number its stored outputs print must come from the run through a glued field, so the prose
+cannot drift from the outputs and reads correctly on the simulator too. A number that is a
+setting or a published value is not a result: it is allowed when it is written literally in the
+chapter's code, in ``danae_lite`` or in the paper.
 """
+import ast
 import json
 import re
 from functools import lru_cache
@@ -14,12 +20,14 @@ from pathlib import Path
 
 import pytest
 
+from danae_lite.book import fields
+
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("[0-9][0-9]_*.ipynb"))
 PAPER = ROOT.parent / "shared" / "reference" / "danae_metrosea2020.tex"
 MAX_CODE_LINE = 88
 
-GLUE_ROLE = re.compile(r"\{glue(?::\w+)?\}`[^`]*`")
+FIELD = re.compile(r"\{[A-Za-z_]\w*(?:![rsa])?(?::[^{}]*)?\}")
 INLINE_CODE = re.compile(r"`[^`]*`")
 MATH = re.compile(r"\$\$.*?\$\$|\$[^$]+\$", re.S)
 # section numbers: "## 1.7 Title", "section 6.3", "sections 1.5–1.7", "§2.6"
@@ -34,10 +42,28 @@ def _cells(path: Path) -> list[dict]:
     return json.loads(path.read_text())["cells"]
 
 
+def templates(cell: dict) -> list[str]:
+    """The Markdown templates of the ``prose(...)`` calls of a code cell (none for other cells)."""
+    if cell["cell_type"] != "code" or "prose(" not in "".join(cell["source"]):
+        return []
+    tree = ast.parse("".join(cell["source"]))
+    return [node.args[0].value for node in ast.walk(tree)
+            if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "prose"
+            and node.args and isinstance(node.args[0], ast.Constant)]
+
+
+def markdown_of(cell: dict) -> str:
+    """The Markdown a reader sees of a cell as written: a Markdown cell's source, the templates
+    of a prose cell, nothing for other cells."""
+    if cell["cell_type"] == "markdown":
+        return "".join(cell["source"])
+    return "\n\n".join(templates(cell))
+
+
 def _prose(cell: dict) -> str:
-    text = "".join(cell["source"])
+    text = markdown_of(cell)
     text = re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)  # fenced code shown as code
-    for pattern in (GLUE_ROLE, INLINE_CODE, MATH, LINK_TARGET, SECTION):
+    for pattern in (FIELD, INLINE_CODE, MATH, LINK_TARGET, SECTION):
         text = pattern.sub(" ", text)
     return text
 
@@ -68,7 +94,8 @@ def _numbers(text: str) -> set[float]:
 def _allowed_literals(path: Path) -> frozenset[str]:
     """Numbers written as literals in the chapter's code, the package or the paper: settings and
     published values, which prose may quote without glue."""
-    texts = ["".join(c["source"]) for c in _cells(path) if c["cell_type"] == "code"]
+    texts = ["".join(c["source"]) for c in _cells(path)
+             if c["cell_type"] == "code" and not templates(c)]
     texts += [p.read_text() for p in sorted((ROOT / "danae_lite").rglob("*.py"))]
     if PAPER.exists():
         texts.append(PAPER.read_text())
@@ -92,13 +119,11 @@ def unglued_numbers(path: Path) -> list[str]:
     cells = _cells(path)
     computed: set[float] = set()
     for c in cells:
-        if c["cell_type"] == "code":
+        if c["cell_type"] == "code" and not templates(c):   # a prose cell prints its template
             computed |= _numbers(_output_text(c))
     allowed = _allowed_literals(path)
     problems = []
     for i, c in enumerate(cells):
-        if c["cell_type"] != "markdown":
-            continue
         prose = _prose(c)
         for m in PROSE_NUMBER.finditer(prose):
             value = m.group(1)
@@ -115,7 +140,7 @@ def unglued_numbers(path: Path) -> list[str]:
 def test_numbers_from_the_run_are_glued(path):
     problems = unglued_numbers(path)
     assert not problems, (f"{path.name}: numbers typed into the prose that the run computes; insert them "
-                          "with myst-nb glue instead:\n" + "\n".join(problems))
+                          "with a glued field of prose() instead:\n" + "\n".join(problems))
 
 
 def test_the_glue_rule_catches_a_typed_result_and_accepts_a_glued_one(tmp_path):
@@ -123,33 +148,49 @@ def test_the_glue_rule_catches_a_typed_result_and_accepts_a_glued_one(tmp_path):
         {"cell_type": "code", "source": ["gain = 0.6221\nprint(f'{gain:.3f} {100 * gain:.1f} %')\nwindow = 0.25"],
          "outputs": [{"output_type": "stream", "name": "stdout", "text": ["0.622 62.2 %\n"]}]},
         {"cell_type": "markdown", "source": ["The gain settles near 0.62, a window of 0.25 s."]},
-        {"cell_type": "markdown", "source": ["The gain settles near {glue:text}`gain:.2f`."]},
+        {"cell_type": "code", "source": ['prose(r"""The gain settles near {gain:.2f}.""")'],
+         "outputs": [{"output_type": "display_data",
+                      "data": {"text/markdown": ["The gain settles near 0.62."]}}]},
         {"cell_type": "markdown", "source": ["A 62 % share; $x = 0.62$ in maths, `0.62` as code."]},
         {"cell_type": "markdown", "source": ["Near 0.7, 0.6 or 63 %: none of them is printed."]},
+        {"cell_type": "code", "source": ['prose(r"""Typed: 0.622, glued: {gain:.3f}.""")'],
+         "outputs": [{"output_type": "display_data",
+                      "data": {"text/markdown": ["Typed: 0.622, glued: 0.622."]}}]},
     ]}
     path = tmp_path / "99_probe.ipynb"
     path.write_text(json.dumps(nb))
     problems = unglued_numbers(path)
     # 0.25 is a literal of the code (a setting), the glued and the maths/code values are fine
-    assert [p.split(" (")[0] for p in problems] == ['cell 1: "0.62"', 'cell 3: "62"'], problems
+    assert [p.split(" (")[0] for p in problems] == ['cell 1: "0.62"', 'cell 3: "62"',
+                                                     'cell 5: "0.622"'], problems
+
+
+def shown_code(cell: dict) -> str:
+    """The code a reader sees: a code cell's input unless the book removes it, and the fenced
+    code blocks of the cell's Markdown (solutions, command lines)."""
+    shown = "\n".join(re.findall(r"^```.*?^```", markdown_of(cell), flags=re.S | re.M))
+    removed = "remove-input" in cell.get("metadata", {}).get("tags", [])
+    if cell["cell_type"] == "code" and not removed:
+        shown = "".join(cell["source"]) + "\n" + shown
+    return shown
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
 def test_code_lines_fit_the_page(path):
-    long = [(i, n + 1, len(line)) for i, c in enumerate(_cells(path)) if c["cell_type"] == "code"
-            for n, line in enumerate("".join(c["source"]).splitlines()) if len(line) > MAX_CODE_LINE]
+    long = [(i, n + 1, len(line)) for i, c in enumerate(_cells(path))
+            for n, line in enumerate(shown_code(c).splitlines()) if len(line) > MAX_CODE_LINE]
     assert not long, (f"{path.name}: code lines longer than {MAX_CODE_LINE} characters scroll sideways "
                       f"in the HTML (cell, line, length): {long}")
 
 
 EXERCISE = re.compile(r"^### Exercise (\d+)\.(\d+)\b", re.M)
-SOLUTION = re.compile(r"^:::+\{admonition\} Solution.*?\n:class: dropdown", re.M)
+SOLUTION = re.compile(r"^<details>\n<summary>Solution</summary>", re.M)
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
 def test_every_chapter_ends_with_a_summary_and_exercises_with_solutions(path):
     chapter = int(path.name[:2])
-    md = ["".join(c["source"]) for c in _cells(path) if c["cell_type"] == "markdown"]
+    md = [markdown_of(c) for c in _cells(path) if markdown_of(c)]
     heads = [line for text in md for line in text.splitlines() if line.startswith("## ")]
     assert heads[-2:] == ["## Summary", "## Exercises"], f"{path.name}: last sections are {heads[-2:]}"
     text = "\n".join(md[next(i for i, t in enumerate(md) if "## Exercises" in t):])
@@ -163,31 +204,32 @@ def test_every_chapter_ends_with_a_summary_and_exercises_with_solutions(path):
         assert SOLUTION.search(body), f"{path.name}: exercise {a}.{b} has no solution behind a toggle"
 
 
-GLUE_KEY = re.compile(r"\{glue(?::\w+)?\}`([A-Za-z_][A-Za-z0-9_]*)")
-
-
 def missing_glue_keys(path: Path) -> list[str]:
-    """'cell N: key' for each ``{glue...}`key``` in the prose that no stored output glued (the
-    book would render it as a warning, and ``-W`` fails the build)."""
-    cells = _cells(path)
-    glued = {o.get("metadata", {}).get("scrapbook", {}).get("name")
-             for c in cells if c["cell_type"] == "code" for o in c.get("outputs", [])}
-    return [f"cell {i}: {key}" for i, c in enumerate(cells) if c["cell_type"] == "markdown"
-            for key in GLUE_KEY.findall("".join(c["source"])) if key not in glued]
+    """'cell N: name' for each field of a prose template that no earlier stored output glued (the
+    cell would have failed; a stored chapter with it is stale)."""
+    glued: set[str] = set()
+    missing = []
+    for i, c in enumerate(_cells(path)):
+        missing += [f"cell {i}: {name}" for t in templates(c) for name in fields(t)
+                    if name not in glued]
+        glued |= {o.get("metadata", {}).get("scrapbook", {}).get("name")
+                  for o in c.get("outputs", [])}
+    return missing
 
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
-def test_every_glued_name_in_the_prose_is_in_the_stored_outputs(path):
+def test_every_field_of_the_prose_was_glued_before_it(path):
     missing = missing_glue_keys(path)
-    assert not missing, f"{path.name}: glue references without a stored glue output:\n" + "\n".join(missing)
+    assert not missing, f"{path.name}: prose fields without an earlier glue output:\n" + "\n".join(missing)
 
 
-def test_the_glue_key_check_finds_a_reference_without_output(tmp_path):
+def test_the_glue_key_check_finds_a_field_without_output(tmp_path):
     glued = {"output_type": "display_data", "data": {"text/plain": ["1"]},
              "metadata": {"scrapbook": {"name": "ch9_kept", "mime_prefix": ""}}}
     nb = {"cells": [
         {"cell_type": "code", "source": ["glue('ch9_kept', 1)"], "outputs": [glued]},
-        {"cell_type": "markdown", "source": ["{glue:text}`ch9_kept:.1f` and {glue:md}`ch9_gone`."]},
+        {"cell_type": "code", "source": ['prose(r"""{ch9_kept:.1f} and {ch9_gone}, $x_{t}$.""")'],
+         "outputs": []},
     ]}
     path = tmp_path / "99_probe.ipynb"
     path.write_text(json.dumps(nb))

@@ -1,0 +1,124 @@
+"""Blocks of the README and the book's pages written from the stored chapters, never by hand.
+
+Two pages quote what the stored chapters hold:
+
+* ``book/performance.md``, the chapters' run times: :func:`times_markdown` of each chapter's
+  execution record (:func:`danae_lite.execute.execution_record`);
+* ``README.md``, the measured case for the recommended denoiser: :data:`RESULTS` filled with the
+  values chapter 6 glued (:func:`glued_values`, :func:`danae_lite.book.fill`).
+
+Each sits between two marker lines, ``<!-- begin NAME: ... -->`` and ``<!-- end NAME -->``
+(invisible on GitHub and in the book). ``python -m danae_lite.execute`` rewrites both after
+every run in place (and ``--pages`` alone), and ``tests/test_pages.py`` fails when a page differs
+from the stored chapters.
+"""
+from __future__ import annotations
+
+import ast
+from collections.abc import Mapping, Sequence
+from pathlib import Path
+from typing import Any
+
+from .book import fill
+
+_RECORD = "application/papermill.record/"
+
+# The README's paragraph on DANAE-res; its fields are names chapter 6 glues.
+RESULTS = """\
+Measured in chapter 6 on real OxIOD, holding out one handheld recording at a time (the methods
+fitted on the other handheld recordings, three seeds): on roll, {ch6_cmp_roll_res} has an RMSE
+of {ch6_cmp_roll_res_rmse:.4f} rad against {ch6_cmp_roll_lib_rmse:.4f} rad for
+{ch6_cmp_roll_lib}, the best library filter on roll (a reduction of {ch6_cmp_roll_red:+.1f} %,
+better on {ch6_cmp_roll_wins} held-out recordings); on pitch, {ch6_cmp_pitch_res} has
+{ch6_cmp_pitch_res_rmse:.4f} rad against {ch6_cmp_pitch_lib_rmse:.4f} rad for
+{ch6_cmp_pitch_lib}, the best on pitch (a reduction of {ch6_cmp_pitch_red:+.1f} %, better on
+{ch6_cmp_pitch_wins}). Fitted on BROAD's undisturbed trials and tested on its {ch6_cmpb_ntrials}
+disturbed ones, DANAE-res behind VQF has a mean total error of {ch6_cmpb_res_vqf:.2f}° against
+VQF's {ch6_cmpb_vqf:.2f}°, and its roll is worse than its filter's on {ch6_nhb_vqf_roll_worse}
+trials behind VQF and on {ch6_nhb_riann_roll_worse} behind RIANN."""
+
+
+def marker_lines(name: str) -> tuple[str, str]:
+    """The two lines that enclose the block ``name``."""
+    return (f"<!-- begin {name}: written by `python -m danae_lite.execute` from the stored "
+            f"chapters; do not edit by hand -->", f"<!-- end {name} -->")
+
+
+def _split(text: str, name: str, where: Path) -> tuple[str, str]:
+    """The text before the block's first marker and after its second; ValueError without them."""
+    begin, end = marker_lines(name)
+    if text.count(begin) != 1 or text.count(end) != 1 or text.index(begin) > text.index(end):
+        raise ValueError(f"{where}: expected one block between the lines {begin!r} and {end!r}")
+    head, rest = text.split(begin)
+    return head, rest.split(end)[1]
+
+
+def block(page: Path, name: str) -> str:
+    """The content of the block ``name`` of ``page`` as it stands."""
+    text = page.read_text(encoding="utf-8")
+    head, tail = _split(text, name, page)
+    begin, end = marker_lines(name)
+    return text[len(head) + len(begin):len(text) - len(tail) - len(end)].strip("\n")
+
+
+def update_block(page: Path, name: str, content: str) -> bool:
+    """Put ``content`` in the block ``name`` of ``page``; True when the page changed."""
+    text = page.read_text(encoding="utf-8")
+    head, tail = _split(text, name, page)
+    begin, end = marker_lines(name)
+    new = f"{head}{begin}\n{content}\n{end}{tail}"
+    if new == text:
+        return False
+    page.write_text(new, encoding="utf-8")
+    return True
+
+
+def _networks(record: Mapping[str, Any]) -> str:
+    trained, cached = record.get("networks_trained"), record.get("networks_cached")
+    if trained is None or cached is None:
+        return "not recorded"
+    if trained + cached == 0:
+        return "none"
+    return f"{trained} trained, {cached} found in the cache"
+
+
+def times_markdown(records: Sequence[tuple[str, Mapping[str, Any]]]) -> str:
+    """A Markdown table of the stored run of each chapter and their total.
+
+    ``records`` holds (chapter name, execution record) pairs in the book's order (see
+    :func:`danae_lite.execute.chapter_records`)."""
+    lines = ["| chapter | wall time [s] | networks | executed (UTC) |", "|---|---:|---|---|"]
+    total = 0.0
+    for chapter, record in records:
+        total += float(record["seconds"])
+        when = record["executed"].replace("T", " ").removesuffix("+00:00")
+        lines.append(f"| {chapter} | {record['seconds']:,.1f} | {_networks(record)} | {when} |")
+    minutes, seconds = divmod(total, 60.0)
+    lines.append(f"| **all chapters** | **{total:,.1f}** ({minutes:.0f} min {seconds:.0f} s) | | |")
+    return "\n".join(lines)
+
+
+def glued_values(nb: Mapping[str, Any]) -> dict[str, Any]:
+    """Name -> value of every glued output of a stored notebook: Markdown values as their text,
+    others as the Python literal their text shows (its text where it is no literal)."""
+    values: dict[str, Any] = {}
+    for cell in nb.get("cells", []):
+        for out in cell.get("outputs", []):
+            name = out.get("metadata", {}).get("scrapbook", {}).get("name")
+            if not name:
+                continue
+            data = out.get("data", {})
+            if _RECORD + "text/markdown" in data:
+                values[name] = "".join(data[_RECORD + "text/markdown"])
+                continue
+            text = "".join(data.get(_RECORD + "text/plain", ""))
+            try:
+                values[name] = ast.literal_eval(text)
+            except (ValueError, SyntaxError):
+                values[name] = text
+    return values
+
+
+def results_markdown(chapter6: Mapping[str, Any]) -> str:
+    """The README's paragraph on DANAE-res (:data:`RESULTS`) from chapter 6's glued values."""
+    return fill(RESULTS, dict(glued_values(chapter6)))

@@ -1,0 +1,46 @@
+"""danae_lite.book.glue / prose / fill: how a chapter's sentences quote its results."""
+import math
+
+import pytest
+from IPython.display import Markdown
+
+from danae_lite import book
+
+
+def test_fill_formats_fields_with_python_format_specs():
+    values = {"gain": 0.62213, "n": 1234, "change": -3.25, "name": "VQF"}
+    text = "gain {gain:.3f}, {n:,} samples, {change:+.1f} %, {name}; {{literal}}"
+    assert book.fill(text, values) == "gain 0.622, 1,234 samples, -3.2 %, VQF; {literal}"
+    # the same as Python's own str.format: fill adds no formatting rules of its own
+    assert book.fill(text, values) == text.format(**values)
+
+
+def test_fill_keeps_maths_and_code_as_written():
+    text = ("$\\hat{x}_{t|t-1}$ and $$\nP_{t} = A P A^\\top\n$$ stay; `f\"{x}\"` stays;\n"
+            "```python\nd = {'a': 1}\n```\nbut {x:.1f} is filled")
+    filled = book.fill(text, {"x": math.pi})
+    assert filled == text.replace("{x:.1f} is", "3.1 is")
+
+
+def test_fill_names_the_missing_field_and_the_sentence():
+    with pytest.raises(KeyError, match="'ch9_missing'.*the gain is"):
+        book.fill("the gain is {ch9_missing:.2f}", {})
+    with pytest.raises(ValueError, match="a field is"):
+        book.fill("an open { brace", {})
+
+
+def test_fields_lists_the_names_outside_maths_and_code():
+    assert book.fields("{a:.1f} $x_{b}$ `{c}` {d} {{e}}") == ["a", "d"]
+
+
+def test_glue_records_numbers_and_markdown_for_prose(capsys, monkeypatch):
+    shown = []
+    monkeypatch.setattr("IPython.display.display", lambda obj, **kw: shown.append(obj))
+    book._RECORDED.clear()
+    book.glue("ch9_gain", 0.125)
+    book.glue("ch9_verdict", Markdown("**better** on roll"))
+    book.prose("\nThe gain is {ch9_gain:.2f}; {ch9_verdict}.\n")
+    shown = [s for s in shown if isinstance(s, Markdown)]      # glue's records are dicts
+    assert len(shown) == 1
+    assert shown[0].data == "The gain is 0.12; **better** on roll."   # round half to even
+    book._RECORDED.clear()

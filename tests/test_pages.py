@@ -1,0 +1,82 @@
+"""README.md and the Performance page quote the stored chapters through generated blocks
+(danae_lite.pages): the blocks must equal what the stored notebooks give."""
+import json
+from pathlib import Path
+
+import nbformat
+import pytest
+
+from danae_lite import pages
+from danae_lite.execute import chapter_records, toc_chapters
+
+ROOT = Path(__file__).resolve().parents[1]
+NOTEBOOKS = ROOT / "notebooks"
+REWRITE = "rewrite it with: python -m danae_lite.execute --pages"
+
+
+def test_the_performance_page_shows_the_stored_execution_records():
+    chapters = [NOTEBOOKS / f"{c}.ipynb" for c in toc_chapters(ROOT)]
+    expected = pages.times_markdown(chapter_records(chapters))
+    assert pages.block(ROOT / "book" / "performance.md", "chapter-times") == expected, (
+        f"book/performance.md: the chapter times differ from the execution records; {REWRITE}")
+
+
+def test_the_readme_quotes_chapter_6_as_stored():
+    chapter6 = nbformat.read(NOTEBOOKS / "06_beyond_the_paper.ipynb", as_version=4)
+    assert pages.block(ROOT / "README.md", "results") == pages.results_markdown(chapter6), (
+        f"README.md: the DANAE-res results differ from the stored chapter 6; {REWRITE}")
+
+
+def test_every_field_of_the_readme_template_is_glued_by_chapter_6():
+    chapter6 = nbformat.read(NOTEBOOKS / "06_beyond_the_paper.ipynb", as_version=4)
+    from danae_lite.book import fields
+    missing = set(fields(pages.RESULTS)) - set(pages.glued_values(chapter6))
+    assert not missing, f"fields of pages.RESULTS that chapter 6 does not glue: {sorted(missing)}"
+
+
+def _notebook(path: Path, seconds: float, trained: int, cached: int, glued=()) -> Path:
+    record = {"seconds": seconds, "networks_trained": trained, "networks_cached": cached,
+              "executed": "2026-11-27T14:00:00+00:00"}
+    outputs = [{"output_type": "display_data", "metadata": {"scrapbook": {"name": n}},
+                "data": {f"application/papermill.record/{mime}": text}} for n, mime, text in glued]
+    cells = [{"cell_type": "code", "execution_count": 1, "id": "a", "metadata": {},
+              "outputs": outputs, "source": ""}]
+    path.write_text(json.dumps({"cells": cells, "metadata": {"danae": {"execution": record}},
+                                "nbformat": 4, "nbformat_minor": 5}))
+    return path
+
+
+def test_update_block_writes_once_and_the_times_add_up(tmp_path):
+    nbs = [_notebook(tmp_path / "01_a.ipynb", 8.25, 0, 0),
+           _notebook(tmp_path / "02_b.ipynb", 70.0, 2, 4)]
+    page = tmp_path / "page.md"
+    begin, end = pages.marker_lines("chapter-times")
+    page.write_text(f"# P\n\nbefore\n\n{begin}\nold\n{end}\n\nafter\n")
+    table = pages.times_markdown(chapter_records(nbs))
+    assert pages.update_block(page, "chapter-times", table) is True
+    assert pages.update_block(page, "chapter-times", table) is False   # nothing left to change
+    text = page.read_text()
+    assert text.startswith("# P\n\nbefore\n\n") and text.endswith("\n\nafter\n")
+    rows = pages.block(page, "chapter-times").splitlines()
+    assert rows[2] == "| 01_a | 8.2 | none | 2026-11-27 14:00:00 |"   # 8.25: round half to even
+    assert rows[3] == "| 02_b | 70.0 | 2 trained, 4 found in the cache | 2026-11-27 14:00:00 |"
+    assert rows[4] == "| **all chapters** | **78.2** (1 min 18 s) | | |"
+
+
+def test_glued_values_reads_numbers_text_and_markdown(tmp_path):
+    path = _notebook(tmp_path / "06_x.ipynb", 1.0, 0, 0, glued=[
+        ("ch9_rmse", "text/plain", "0.0232"), ("ch9_wins", "text/plain", "'3 of 4'"),
+        ("ch9_n", "text/plain", "11"), ("ch9_name", "text/markdown", "`vqf`")])
+    values = pages.glued_values(nbformat.read(path, as_version=4))
+    assert values == {"ch9_rmse": 0.0232, "ch9_wins": "3 of 4", "ch9_n": 11, "ch9_name": "`vqf`"}
+
+
+def test_a_page_without_its_markers_or_a_chapter_without_a_record_is_refused(tmp_path):
+    page = tmp_path / "page.md"
+    page.write_text("# no markers\n")
+    with pytest.raises(ValueError, match="expected one block"):
+        pages.block(page, "results")
+    bare = tmp_path / "03_c.ipynb"
+    bare.write_text(json.dumps({"cells": [], "metadata": {}, "nbformat": 4, "nbformat_minor": 5}))
+    with pytest.raises(ValueError, match="03_c.ipynb: no execution record"):
+        chapter_records([bare])
