@@ -234,3 +234,65 @@ def test_the_glue_key_check_finds_a_field_without_output(tmp_path):
     path = tmp_path / "99_probe.ipynb"
     path.write_text(json.dumps(nb))
     assert missing_glue_keys(path) == ["cell 1: ch9_gone"]
+
+
+def _shows(cell: dict) -> list[str]:
+    """'figure' / 'table' for each figure or table a reader sees among a code cell's outputs."""
+    tags = cell.get("metadata", {}).get("tags", [])
+    if cell["cell_type"] != "code" or templates(cell) or {"hide-cell", "hide-output",
+                                                          "remove-output"} & set(tags):
+        return []
+    kinds = []
+    for out in cell.get("outputs", []):
+        data = out.get("data", {})
+        if "image/png" in data or "image/svg+xml" in data:
+            kinds.append("figure")
+        elif "text/html" in data:
+            kinds.append("table")
+    return kinds
+
+
+def unexplained_outputs(path: Path) -> list[str]:
+    """'cell N: figure' for each figure or table that no prose follows before the next heading:
+    every table and figure is followed by what it shows."""
+    cells = _cells(path)
+    problems = []
+    for i, cell in enumerate(cells):
+        kinds = _shows(cell)
+        if not kinds:
+            continue
+        for later in cells[i + 1:]:
+            text = markdown_of(later).strip()
+            if text.startswith("#"):
+                break                                   # the next section begins
+            if text:
+                break
+        else:
+            text = ""
+        if not text or text.startswith("#"):
+            problems.append(f"cell {i}: {' and '.join(sorted(set(kinds)))}")
+    return problems
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_every_table_and_figure_is_followed_by_what_it_shows(path):
+    problems = unexplained_outputs(path)
+    assert not problems, (f"{path.name}: tables or figures with no prose after them before the "
+                          "next heading:\n" + "\n".join(problems))
+
+
+def test_the_explanation_check_finds_a_figure_left_alone(tmp_path):
+    png = {"output_type": "display_data", "data": {"image/png": "iVBOR"}}
+    html = {"output_type": "execute_result", "data": {"text/html": ["<table></table>"]}}
+    nb = {"cells": [
+        {"cell_type": "code", "metadata": {}, "source": ["plot()"], "outputs": [png]},
+        {"cell_type": "markdown", "metadata": {}, "source": ["## Next section"]},
+        {"cell_type": "code", "metadata": {}, "source": ["table()"], "outputs": [html]},
+        {"cell_type": "code", "metadata": {}, "source": ["x = 1"], "outputs": []},
+        {"cell_type": "markdown", "metadata": {}, "source": ["The table shows it."]},
+        {"cell_type": "code", "metadata": {"tags": ["hide-cell"]}, "source": ["plot()"],
+         "outputs": [png]},
+    ]}
+    path = tmp_path / "99_probe.ipynb"
+    path.write_text(json.dumps(nb))
+    assert unexplained_outputs(path) == ["cell 0: figure"]
