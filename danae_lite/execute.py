@@ -162,8 +162,9 @@ def chapter_records(paths: Sequence[Path]) -> list[tuple[str, dict[str, Any]]]:
 
 
 def write_pages(root: Path, folder: Path) -> None:
-    """Rewrite the blocks of ``README.md`` and ``book/performance.md`` that quote the stored
-    chapters of ``_toc.yml`` in ``folder`` (:mod:`danae_lite.pages`); names each page that moved.
+    """Rewrite the blocks of ``README.md``, ``book/performance.md`` and the chapters' opening
+    cells that quote the stored chapters of ``_toc.yml`` in ``folder`` (:mod:`danae_lite.pages`);
+    names each page that moved.
 
     Raises ValueError when a chapter carries no execution record or a page lacks its block."""
     import nbformat
@@ -173,8 +174,11 @@ def write_pages(root: Path, folder: Path) -> None:
     if not (root / "book" / "performance.md").is_file():
         return                                  # not the book's repository: nothing to quote
     paths = [folder / f"{c}.ipynb" for c in toc_chapters(root)]
-    blocks = [(root / "book" / "performance.md", "chapter-times",
-               pages.times_markdown(chapter_records(paths)))]
+    records = chapter_records(paths)
+    for path, (_, record) in zip(paths, records):
+        if pages.update_notebook_block(path, "run-time", pages.run_time_markdown(record)):
+            print(f"{path.name}: its run time rewritten from its execution record")
+    blocks = [(root / "book" / "performance.md", "chapter-times", pages.times_markdown(records))]
     chapter6 = folder / "06_beyond_the_paper.ipynb"
     if chapter6.is_file():
         blocks.append((root / "README.md", "results",

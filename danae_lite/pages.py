@@ -1,14 +1,16 @@
 """Blocks of the README and the book's pages written from the stored chapters, never by hand.
 
-Two pages quote what the stored chapters hold:
+Three places quote what the stored chapters hold:
 
 * ``book/performance.md``, the chapters' run times: :func:`times_markdown` of each chapter's
   execution record (:func:`danae_lite.execute.execution_record`);
+* each chapter's opening Markdown cell, its own run time (:func:`run_time_markdown`; a Markdown
+  cell, so writing it leaves the chapter's record valid);
 * ``README.md``, the measured case for the recommended denoiser: :data:`RESULTS` filled with the
   values chapter 6 glued (:func:`glued_values`, :func:`danae_lite.book.fill`).
 
 Each sits between two marker lines, ``<!-- begin NAME: ... -->`` and ``<!-- end NAME -->``
-(invisible on GitHub and in the book). ``python -m danae_lite.execute`` rewrites both after
+(invisible on GitHub, in the book and in JupyterLab). ``python -m danae_lite.execute`` rewrites both after
 every run in place (and ``--pages`` alone), and ``tests/test_pages.py`` fails when a page differs
 from the stored chapters.
 """
@@ -61,15 +63,55 @@ def block(page: Path, name: str) -> str:
     return text[len(head) + len(begin):len(text) - len(tail) - len(end)].strip("\n")
 
 
+def _replaced(text: str, name: str, content: str, where: Path) -> str:
+    head, tail = _split(text, name, where)
+    begin, end = marker_lines(name)
+    return f"{head}{begin}\n{content}\n{end}{tail}"
+
+
 def update_block(page: Path, name: str, content: str) -> bool:
     """Put ``content`` in the block ``name`` of ``page``; True when the page changed."""
     text = page.read_text(encoding="utf-8")
-    head, tail = _split(text, name, page)
-    begin, end = marker_lines(name)
-    new = f"{head}{begin}\n{content}\n{end}{tail}"
+    new = _replaced(text, name, content, page)
     if new == text:
         return False
     page.write_text(new, encoding="utf-8")
+    return True
+
+
+def _block_cell(nb: Any, name: str, path: Path) -> Any:
+    """The one Markdown cell of a notebook that holds the block ``name``."""
+    begin = marker_lines(name)[0]
+    cells = [c for c in nb.cells if c.cell_type == "markdown" and begin in c.source]
+    if len(cells) != 1:
+        raise ValueError(f"{path}: expected one Markdown cell holding the line {begin!r}, "
+                         f"found {len(cells)}")
+    return cells[0]
+
+
+def notebook_block(path: Path, name: str) -> str:
+    """The content of the block ``name`` in the Markdown cells of the notebook ``path``."""
+    import nbformat
+
+    cell = _block_cell(nbformat.read(path, as_version=4), name, path)
+    begin, end = marker_lines(name)
+    return cell.source.split(begin)[1].split(end)[0].strip("\n")
+
+
+def update_notebook_block(path: Path, name: str, content: str) -> bool:
+    """Put ``content`` in the block ``name`` of a Markdown cell of the notebook ``path`` (the
+    code cells, outputs and execution record stay as they are); True when it changed."""
+    import nbformat
+
+    nb = nbformat.read(path, as_version=4)
+    cell = _block_cell(nb, name, path)
+    new = _replaced(cell.source, name, content, path)
+    if new == cell.source:
+        return False
+    cell.source = new
+    tmp = path.with_name(f".{path.name}.pages.tmp")
+    nbformat.write(nb, tmp, version=4)
+    tmp.replace(path)
     return True
 
 
@@ -96,6 +138,19 @@ def times_markdown(records: Sequence[tuple[str, Mapping[str, Any]]]) -> str:
     minutes, seconds = divmod(total, 60.0)
     lines.append(f"| **all chapters** | **{total:,.1f}** ({minutes:.0f} min {seconds:.0f} s) | | |")
     return "\n".join(lines)
+
+
+def run_time_markdown(record: Mapping[str, Any]) -> str:
+    """One sentence on a chapter's stored run: its wall time and networks (its execution record)."""
+    seconds = f"{record['seconds']:,.1f} s"
+    trained, cached = record.get("networks_trained"), record.get("networks_cached")
+    where = "on the reference machine (2 CPU cores, no GPU)"
+    if trained is None or cached is None or trained + cached == 0:
+        return f"*Run time*: the stored run of this chapter took {seconds} {where}."
+    return (f"*Run time*: the stored run of this chapter took {seconds} {where}, with "
+            f"{cached} of its {trained + cached} trained networks found in the cache; from an "
+            "empty cache it trains them all and takes longer (see "
+            "[Performance](../book/performance.md)).")
 
 
 def glued_values(nb: Mapping[str, Any]) -> dict[str, Any]:

@@ -80,3 +80,30 @@ def test_a_page_without_its_markers_or_a_chapter_without_a_record_is_refused(tmp
     bare.write_text(json.dumps({"cells": [], "metadata": {}, "nbformat": 4, "nbformat_minor": 5}))
     with pytest.raises(ValueError, match="03_c.ipynb: no execution record"):
         chapter_records([bare])
+
+
+def test_each_chapter_states_its_stored_run_time():
+    chapters = [NOTEBOOKS / f"{c}.ipynb" for c in toc_chapters(ROOT)]
+    for path, (_, record) in zip(chapters, chapter_records(chapters)):
+        assert pages.notebook_block(path, "run-time") == pages.run_time_markdown(record), (
+            f"{path.name}: its stated run time differs from its execution record; {REWRITE}")
+
+
+def test_a_notebook_block_is_rewritten_without_touching_code_or_record(tmp_path):
+    begin, end = pages.marker_lines("run-time")
+    path = _notebook(tmp_path / "05_x.ipynb", 12.0, 1, 2)
+    nb = json.loads(path.read_text())
+    nb["cells"].insert(0, {"cell_type": "markdown", "id": "m", "metadata": {},
+                           "source": f"# 5. X\n\nIntro.\n\n{begin}\nold\n{end}"})
+    path.write_text(json.dumps(nb))
+    (_, record), = chapter_records([path])
+    assert pages.update_notebook_block(path, "run-time", pages.run_time_markdown(record))
+    after = nbformat.read(path, as_version=4)
+    assert after.cells[1] == nbformat.from_dict(nb["cells"][1])       # the code cell as it was
+    assert after.metadata["danae"]["execution"]["seconds"] == 12.0
+    assert pages.notebook_block(path, "run-time") == (
+        "*Run time*: the stored run of this chapter took 12.0 s on the reference machine "
+        "(2 CPU cores, no GPU), with 2 of its 3 trained networks found in the cache; from an "
+        "empty cache it trains them all and takes longer (see "
+        "[Performance](../book/performance.md)).")
+    assert not pages.update_notebook_block(path, "run-time", pages.run_time_markdown(record))
