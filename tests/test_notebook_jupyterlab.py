@@ -7,7 +7,10 @@ text. So the chapters write links as ``[title](03_danae.ipynb)``, citations as l
 references page, equation numbers with ``\\tag``, solutions in ``<details>``, and quote their
 results through :func:`danae_lite.book.prose` cells, whose input the book removes
 (``remove-input``) and JupyterLab collapses (``jupyter.source_hidden``) and whose stored output
-is the filled Markdown. The HTML book renders the same Markdown.
+is the filled Markdown. The HTML book renders the same Markdown. A cell the book hides behind a
+toggle (``hide-cell``: the computations behind the exercises' solutions) is collapsed in
+JupyterLab too, input and output, so that a student does not read a solution before its
+exercise.
 """
 import json
 import re
@@ -67,6 +70,9 @@ def prose_cell_problems(path: Path) -> list[str]:
         if ("remove-input" in tags or "hide-input" in tags) and not collapsed:
             problems.append(f"cell {i}: hidden in the book, shown in JupyterLab "
                             "(set metadata.jupyter.source_hidden)")
+        if "hide-cell" in tags and not (collapsed and meta["jupyter"].get("outputs_hidden")):
+            problems.append(f"cell {i}: behind a toggle in the book, open in JupyterLab "
+                            "(set metadata.jupyter.source_hidden and outputs_hidden)")
     return problems
 
 
@@ -91,7 +97,10 @@ def test_the_checks_catch_each_kind_of_raw_markup(tmp_path):
                                "data": {"text/markdown": ["Value {left:.2f} and 1.5"]}}]}
     nb = {"cells": [{"cell_type": "markdown", "metadata": {}, "source": [md]}, prose_cell,
                     {"cell_type": "code", "metadata": {"tags": ["hide-input"]}, "source": ["x = 1"],
-                     "outputs": []}]}
+                     "outputs": []},
+                    {"cell_type": "code", "metadata": {"tags": ["hide-cell"],
+                                                       "jupyter": {"source_hidden": True}},
+                     "source": ["y = 2"], "outputs": []}]}
     path = tmp_path / "99_probe.ipynb"
     path.write_text(json.dumps(nb))
     found = raw_markup(path)
@@ -101,4 +110,6 @@ def test_the_checks_catch_each_kind_of_raw_markup(tmp_path):
         "cell 0: a MyST target", "cell 0: an equation label", "cell 1: an unfilled field"], found
     assert prose_cell_problems(path) == [
         "cell 1: hidden in the book, shown in JupyterLab (set metadata.jupyter.source_hidden)",
-        "cell 2: hidden in the book, shown in JupyterLab (set metadata.jupyter.source_hidden)"]
+        "cell 2: hidden in the book, shown in JupyterLab (set metadata.jupyter.source_hidden)",
+        "cell 3: behind a toggle in the book, open in JupyterLab (set metadata.jupyter.source_hidden "
+        "and outputs_hidden)"]
