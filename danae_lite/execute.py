@@ -8,6 +8,7 @@ See :func:`execute_book` for its safety rule and :func:`main` for its flags.
 """
 from __future__ import annotations
 
+import argparse
 import hashlib
 import os
 import platform
@@ -543,22 +544,8 @@ def _stale_or_say_so(paths: Sequence[Path], data_sha256: str) -> list[Path]:
     return stale
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    """Command line: ``python -m danae_lite.execute`` (``make execute``). Returns the exit status.
-
-    Parameters
-    ----------
-    argv
-        Arguments (default ``sys.argv[1:]``); ``--help`` lists them.
-
-    Returns
-    -------
-    int
-        0 on success; 2 for a refused run, a missing data folder or notebook, an unknown
-        chapter or a failing cell, with one line on stderr.
-    """
-    import argparse
-
+def _parser() -> argparse.ArgumentParser:
+    """The command line of :func:`main`."""
     parser = argparse.ArgumentParser(
         prog="python -m danae_lite.execute", formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Re-execute the book's chapters, in the order of _toc.yml, and store their outputs\n"
@@ -593,7 +580,24 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--pages", action="store_true",
                         help="execute nothing: rewrite the blocks of README.md and book/performance.md that "
                              "quote the stored chapters (every run in place does it too)")
-    args = parser.parse_args(argv)
+    return parser
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    """Command line: ``python -m danae_lite.execute`` (``make execute``). Returns the exit status.
+
+    Parameters
+    ----------
+    argv
+        Arguments (default ``sys.argv[1:]``); ``--help`` lists them.
+
+    Returns
+    -------
+    int
+        0 on success; 2 for a refused run, a missing data folder or notebook, an unknown
+        chapter or a failing cell, with one line on stderr.
+    """
+    args = _parser().parse_args(argv)
 
     try:
         root = find_root()
