@@ -28,6 +28,7 @@ from typing import Any
 
 from .config import DEFAULT_SEED, RunSettings
 from .core.seeding import seed_everything
+from .research import memo
 
 # values glued by the running chapter, by name (one chapter per kernel; setup() empties it)
 _RECORDED: dict[str, Any] = {}
@@ -48,6 +49,7 @@ def setup(seed: int = DEFAULT_SEED, *, verbose: bool = True) -> RunSettings:
     # torch's own thread count stands: every physical core, or OMP_NUM_THREADS when set (make
     # test sets 1 per pytest worker so that two workers never oversubscribe two cores)
     cfg = RunSettings.from_env(seed=seed)
+    memo.use_store(cfg.run_store)
     if verbose:
         mode = "FAST (DANAE_FAST=1: reduced steps, data and seeds)" if cfg.fast else "full"
         data = f"{cfg.data_dir}" if cfg.data_dir else "not set (DANAE_DATA unset): the simulator stands in"

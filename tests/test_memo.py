@@ -1,9 +1,16 @@
-"""The in-process memo of filter runs and network outputs (danae_lite.research.memo)."""
+"""The memo of filter runs and network outputs, in memory and on disk (danae_lite.research.memo)."""
+import os
+
 import numpy as np
+import pytest
 
 from danae_lite.core.train import TrainConfig, train
-from danae_lite.research import features
-from danae_lite.research.memo import RunMemo, digest
+from danae_lite.research import features, memo
+from danae_lite.research.memo import RunMemo, RunStore, digest
+
+
+def _store_in_use():
+    return memo._store.folder if memo._store is not None else None
 
 
 def test_digest_follows_content_dtype_and_shape_not_memory():
@@ -18,7 +25,7 @@ def test_digest_follows_content_dtype_and_shape_not_memory():
 
 
 def test_the_memo_drops_the_least_recently_used_past_its_cap():
-    memo = RunMemo(max_bytes=3 * 800)
+    memo = RunMemo(max_bytes=3 * 800, code_of="danae_lite.research.filters")
     for k in range(3):
         memo.put(("run", k), np.full((100, 1), float(k)))
     assert memo.get(("run", 0)) is not None  # 0 used last: 1 is now the oldest
@@ -46,9 +53,73 @@ def test_a_network_run_twice_is_computed_once_and_equal():
 
 
 def test_inside_bypassed_every_run_is_computed_and_nothing_stored():
-    memo = RunMemo(max_bytes=10_000)
+    memo = RunMemo(max_bytes=10_000, code_of="danae_lite.research.filters")
     memo.put(("run", 0), np.zeros(10))
     with memo.bypassed():
         assert memo.get(("run", 0)) is None      # computed afresh, as a timing needs
         memo.put(("run", 1), np.ones(10))
     assert memo.get(("run", 0)) is not None and memo.get(("run", 1)) is None
+
+
+# ---- the store on disk ------------------------------------------------------------------------
+
+@pytest.fixture
+def store(tmp_path):
+    s = RunStore(tmp_path / "runs", max_bytes=None)
+    memo.use_store(s)
+    yield s
+    memo.use_store(None)
+
+
+def test_a_run_stored_on_disk_is_found_by_a_fresh_memo_of_the_same_code(store):
+    first = RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.filters")
+    first.put(("run", 1), np.arange(6.0).reshape(3, 2))
+    later = RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.filters")  # another process
+    np.testing.assert_array_equal(later.get(("run", 1)), np.arange(6.0).reshape(3, 2))
+    assert later.get(("run", 2)) is None
+    other_code = RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.features")
+    assert other_code.get(("run", 1)) is None          # same key, computed by other code
+    with later.bypassed():
+        assert later.get(("run", 1)) is None
+    memo.use_store(None)
+    assert RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.filters").get(("run", 1)) is None
+
+
+def test_a_damaged_stored_run_counts_as_missing_and_is_removed(store):
+    m = RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.filters")
+    m.put(("run", 1), np.ones(100))
+    (f,) = store.folder.glob("*.npy")
+    f.write_bytes(f.read_bytes()[:50])                  # cut short, as by a full disk
+    assert RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.filters").get(("run", 1)) is None
+    assert not f.exists()
+
+
+def test_the_store_removes_the_least_recently_used_runs_past_its_cap(tmp_path):
+    s = RunStore(tmp_path, max_bytes=3 * 928)            # three (100, 1) float64 runs with their headers
+    for k in range(3):
+        s.save(f"r{k}", np.full((100, 1), float(k)))
+        os.utime(tmp_path / f"r{k}.npy", (1000.0 + k, 1000.0 + k))
+    assert s.load("r0") is not None                      # loading marks it used: r1 is now the oldest
+    s.save("r3", np.zeros((100, 1)))
+    s.prune()
+    assert sorted(f.stem for f in tmp_path.glob("*.npy")) == ["r0", "r2", "r3"]
+
+
+def test_code_fingerprint_follows_the_code_the_runs_import_and_nothing_else(monkeypatch):
+    before = memo.code_fingerprint("danae_lite.research.filters")
+    ours, theirs = memo._import_closure("danae_lite.research.filters")
+    assert {"danae_lite.research.filters", "danae_lite.research.ahrs_grid", "danae_lite.core.angles"} <= ours
+    assert "danae_lite.research.crossval" not in ours and "danae_lite.book" not in ours
+    assert {"ahrs", "vqf", "imufusion", "riann", "numpy", "scipy"} <= theirs
+    read = memo.module_code
+    for module, changes in (("danae_lite.research.crossval", False), ("danae_lite.research.ahrs_grid", True)):
+        memo.code_fingerprint.cache_clear()
+        monkeypatch.setattr(memo, "module_code", lambda name: read(name) + (b"\n_EDIT = 1\n" if name == module else b""))
+        assert (memo.code_fingerprint("danae_lite.research.filters") != before) is changes, module
+    memo.code_fingerprint.cache_clear()
+
+
+def test_a_worker_call_uses_the_store_of_the_process_that_sent_it(store):
+    call = memo.carrying_store(_store_in_use)
+    memo.use_store(None)
+    assert call() == store.folder                        # what a worker process does first

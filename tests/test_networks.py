@@ -118,8 +118,8 @@ def test_cache_key_hashes_one_explicit_list_of_modules():
 def test_cache_key_ignores_checkpoint_code_but_not_training_code(recs, monkeypatch, module, changes_key):
     job = _job([recs[0].euler[:, 0]], [recs[1].euler[:, 0]], TrainConfig(max_steps=5))
     before = networks.cache_key(job)
-    read = networks._module_source
-    monkeypatch.setattr(networks, "_module_source", lambda name: read(name) + (b"\n_EDIT = 1\n" if name == module else b""))
+    read = networks.module_code
+    monkeypatch.setattr(networks, "module_code", lambda name: read(name) + (b"\n_EDIT = 1\n" if name == module else b""))
     assert (networks.cache_key(job) != before) is changes_key
 
 

@@ -79,26 +79,33 @@ class NetworkCache:
     def prune(self, keep: Path | None = None) -> list[Path]:
         """Remove the least recently used files until the folder is within ``max_bytes``;
         ``keep`` is never removed. Returns the files removed (oldest first)."""
-        if self.max_bytes is None or not self.folder.is_dir():
-            return []
-        files = []
-        for f in self.folder.glob("*.pt"):
-            try:
-                st = f.stat()
-            except FileNotFoundError:  # removed meanwhile by another process sharing the folder
-                continue
-            files.append((st.st_mtime, f, st.st_size))
-        total = sum(size for _, _, size in files)
-        removed = []
-        for _, f, size in sorted(files):
-            if total <= self.max_bytes:
-                break
-            if f == keep:
-                continue
-            f.unlink(missing_ok=True)
-            total -= size
-            removed.append(f)
-        return removed
+        return prune_folder(self.folder, "*.pt", self.max_bytes, keep)
+
+
+def prune_folder(folder: Path, pattern: str, max_bytes: int | None, keep: Path | None = None) -> list[Path]:
+    """Remove the least recently used (oldest modification time) files of ``folder`` matching
+    ``pattern`` until they total at most ``max_bytes``; ``keep`` is never removed, nor is
+    anything when ``max_bytes`` is None. Returns the files removed (oldest first)."""
+    if max_bytes is None or not folder.is_dir():
+        return []
+    files = []
+    for f in folder.glob(pattern):
+        try:
+            st = f.stat()
+        except FileNotFoundError:  # removed meanwhile by another process sharing the folder
+            continue
+        files.append((st.st_mtime, f, st.st_size))
+    total = sum(size for _, _, size in files)
+    removed = []
+    for _, f, size in sorted(files):
+        if total <= max_bytes:
+            break
+        if f == keep:
+            continue
+        f.unlink(missing_ok=True)
+        total -= size
+        removed.append(f)
+    return removed
 
 
 def as_cache(cache: str | os.PathLike[str] | None) -> NetworkCache | None:
@@ -123,7 +130,7 @@ class NetworkJob:
     metadata: Mapping[str, Any]
 
 
-def _module_source(name: str) -> bytes:
+def module_code(name: str) -> bytes:
     """The code of module ``name`` without its docstrings and comments (``ast.unparse``), as
     bytes: editing the documentation, or moving the file, keeps the networks."""
     return _code_only(Path(importlib.import_module(name).__file__ or "").read_bytes())
@@ -148,7 +155,7 @@ def cache_key(job: NetworkJob) -> str:
     (not the device or thread count, which change only float rounding) and the data."""
     h = hashlib.sha256()
     for name in NETWORK_CODE:
-        h.update(_module_source(name))
+        h.update(module_code(name))
     settings = {k: v for k, v in job.config.to_dict().items() if k not in ("device", "num_threads")}
     h.update(repr(sorted(settings.items())).encode())
     for a in (*job.inputs, *(job.masks or ()), *job.targets):

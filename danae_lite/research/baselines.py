@@ -69,6 +69,7 @@ from scipy.ndimage import uniform_filter1d
 from . import filters, kf_grid, kf_offline, methods
 from ..core import kalman
 from ..core.angles import ANGLES, wrap
+from .memo import RunMemo, digest
 from .methods import Method, total_error_rmse, total_objective, train_objective
 from ..core.paper_danae import PaperDanae, check_settings, continuous_target
 from ..core.recording import Recording
@@ -332,6 +333,11 @@ class LinearMap(_OnPaperKF):
         return [out]
 
 
+searches = RunMemo(64 << 20, code_of=__name__)
+"""Grid searches of :class:`LibraryFilter` (their score table per grid point), by filter, grid
+and training data: a search is run once, and its many filter runs are not stored on disk."""
+
+
 class LibraryFilter(Method):
     """A filter of :data:`danae_lite.research.filters.FILTERS`, its grid searched on the training recordings."""
 
@@ -357,19 +363,33 @@ class LibraryFilter(Method):
         self.ctx = ctx
         keys = list(self.spec.grid)
         grid = [dict(zip(keys, values)) for values in itertools.product(*(self.spec.grid[k] for k in keys))]
-        runs = iter(filters.run_many([(self.name, r.gyro, r.acc, r.mag, r.fs, params)
-                                      for params in grid for r in ctx.train], jobs=ctx.jobs))
-        rows = []
-        for params in grid:
-            est = {r.name: self._frame(next(runs)) for r in ctx.train}
-            per_angle = train_objective(est, ctx, (0, 1, 2))
-            rows.append({**params, **{f"rmse_{a}": float(v) for a, v in zip(ANGLES, per_angle)},
-                         "objective": total_objective(est, ctx)})
-        if rows:
-            self.search = pd.DataFrame(rows)
+        if grid:
+            scores = self._search(grid, ctx)
+            self.search = pd.DataFrame([{**params, **{f"rmse_{a}": float(v) for a, v in zip(ANGLES, row[:3])},
+                                         "objective": float(row[3])} for params, row in zip(grid, scores)])
             best = self.search.loc[self.search["objective"].idxmin()]
             self.params = {k: (float(best[k]) if isinstance(best[k], (int, float, np.floating)) else best[k]) for k in keys}
         return self
+
+    def _search(self, grid: list[dict[str, Any]], ctx: Context) -> Array:
+        """Per grid point, the clean-sample RMSE [rad] of roll, pitch, yaw and the total-error
+        objective over the training recordings, (len(grid), 4). A search made before with the
+        same filter, grid, training data and alignment is found in :data:`searches`."""
+        al = ctx.alignment
+        key = ("search", self.name, tuple((k, tuple(self.spec.grid[k])) for k in self.spec.grid),
+               digest(al.sensor_to_body, np.array([al.north_yaw])),
+               tuple((r.fs, digest(r.gyro, r.acc, r.mag, r.quat, ctx.clean[r.name])) for r in ctx.train))
+        found = searches.get(key)
+        if found is None:
+            runs = iter(filters.run_many([(self.name, r.gyro, r.acc, r.mag, r.fs, params)
+                                          for params in grid for r in ctx.train], jobs=ctx.jobs, persist=False))
+            rows = []
+            for _ in grid:
+                est = {r.name: self._frame(next(runs)) for r in ctx.train}
+                rows.append([*train_objective(est, ctx, (0, 1, 2)), total_objective(est, ctx)])
+            found = np.array(rows, dtype=float)
+            searches.put(key, found)
+        return found
 
     def predict(self, rec: Recording) -> list[Array]:
         return [self.run(rec, **self.params)]

@@ -41,6 +41,7 @@ from ..core import metrics
 from ..core.angles import ANGLES
 from ..core.datasets import Experiment
 from .leaderboard import Leaderboard, run_leaderboard, trial_figures
+from .memo import carrying_store
 from .methods import Method
 from ..core.networks import in_processes, threads_per_process
 from ..core.recording import Recording
@@ -363,7 +364,7 @@ def run_splits(
         threads = threads_per_process(jobs)
         worker_cfg = cfg if cfg.num_threads is not None else _with_threads(cfg, threads)
         calls = [(s, *common, worker_cfg, cache, 1) for s in splits]
-        for i, res in enumerate(in_processes(_run_one, calls, processes=jobs, threads=threads)):
+        for i, res in enumerate(in_processes(carrying_store(_run_one), calls, processes=jobs, threads=threads)):
             results[i] = res
             bar.update()
     else:

@@ -65,7 +65,7 @@ def multi_input(rec: Recording, est: Array, north_yaw: float) -> Array:
     return np.column_stack([to_circle(est), tilt, np.sin(heading), np.cos(heading), rates])
 
 
-memo = RunMemo(1 << 30)
+memo = RunMemo(1 << 30, code_of=__name__)
 """Network outputs kept by :func:`run_network` (1 GiB)."""
 
 

@@ -245,7 +245,7 @@ magnetic rejection [deg], VQF's tauAcc and tauMag [s], Madgwick's beta [rad/s], 
 and k_I."""
 
 
-memo = RunMemo(2 << 30)
+memo = RunMemo(2 << 30, code_of=__name__)
 """Filter outputs kept by :func:`run_filter` (2 GiB: every distinct run of a chapter's grid searches)."""
 
 
@@ -259,14 +259,16 @@ def _run_group(name: str, g: Array, a: Array, m: Array | None, fs: float, params
 
 
 def run_many(calls: Sequence[tuple[str, ArrayLike, ArrayLike, ArrayLike | None, float, dict[str, Any]]], *,
-             jobs: int = 1) -> list[Array]:
+             jobs: int = 1, persist: bool = True) -> list[Array]:
     """:func:`run_filter` for each ``(name, gyro, acc, mag, fs, params)`` of ``calls``, in order.
 
     The runs that :data:`memo` does not hold are grouped by filter and recording: a group is
     one pass over the samples where the filter has one for a whole grid (Madgwick, Mahony:
     :mod:`danae_lite.research.ahrs_grid`). With ``jobs`` > 1 the groups are computed in that
     many worker processes (:func:`~danae_lite.core.networks.in_processes`, one torch thread
-    each) and stored here: a grid search is where the other cores help."""
+    each) and stored here: a grid search is where the other cores help. ``persist=False``
+    keeps the computed runs in memory only, not in the memo's store on disk (a grid search's
+    many runs, of which one is used afterwards)."""
     for name, *_ in calls:
         if name not in FILTERS:
             raise ValueError(f"unknown filter {name!r}; choose one of {', '.join(FILTERS)}")
@@ -287,7 +289,7 @@ def run_many(calls: Sequence[tuple[str, ArrayLike, ArrayLike, ArrayLike | None, 
     computed: dict[tuple[Any, ...], Array] = {}
     for runs, qs in zip(groups.values(), results):
         for key, q in zip(runs, qs):
-            memo.put(key, q)
+            memo.put(key, q, persist=persist)
             computed[key] = q
     return [found if found is not None else computed[keys[i]] for i, found in enumerate(out)]
 
