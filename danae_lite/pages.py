@@ -7,7 +7,7 @@ Three places quote what the stored chapters hold:
 * each chapter's opening Markdown cell, its own run time (:func:`run_time_markdown`; a Markdown
   cell, so writing it leaves the chapter's record valid);
 * ``README.md``, the measured case for the recommended denoiser: :data:`RESULTS` filled with the
-  values chapter 6 glued (:func:`glued_values`, :func:`danae_lite.book.fill`).
+  values chapter 8 glued (:func:`glued_values`, :func:`danae_lite.book.fill`).
 
 Each sits between two marker lines, ``<!-- begin NAME: ... -->`` and ``<!-- end NAME -->``
 (invisible on GitHub, in the book and in JupyterLab). ``python -m danae_lite.execute`` rewrites both after
@@ -25,9 +25,9 @@ from .book import fill
 
 _RECORD = "application/papermill.record/"
 
-# The README's paragraph on DANAE-res; its fields are names chapter 6 glues.
+# The README's paragraph on DANAE-res; its fields are names chapter 8 glues.
 RESULTS = """\
-Measured in chapter 6 on real OxIOD, holding out one handheld recording at a time (the methods
+Measured in chapter 8 on real OxIOD, holding out one handheld recording at a time (the methods
 fitted on the other handheld recordings, three seeds): on roll, {ch6_cmp_roll_res} has an RMSE
 of {ch6_cmp_roll_res_rmse:.4f} rad against {ch6_cmp_roll_lib_rmse:.4f} rad for
 {ch6_cmp_roll_lib}, the best library filter on roll (a reduction of {ch6_cmp_roll_red:+.1f} %,
@@ -175,5 +175,5 @@ def glued_values(nb: Mapping[str, Any]) -> dict[str, Any]:
 
 
 def results_markdown(chapter6: Mapping[str, Any]) -> str:
-    """The README's paragraph on DANAE-res (:data:`RESULTS`) from chapter 6's glued values."""
+    """The README's paragraph on DANAE-res (:data:`RESULTS`) from chapter 8's glued values."""
     return fill(RESULTS, dict(glued_values(chapter6)))

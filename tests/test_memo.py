@@ -112,7 +112,8 @@ def test_code_fingerprint_follows_the_code_the_runs_import_and_nothing_else(monk
     assert "danae_lite.research.crossval" not in ours and "danae_lite.book" not in ours
     assert {"ahrs", "vqf", "imufusion", "riann", "numpy", "scipy"} <= theirs
     read = memo.module_code
-    for module, changes in (("danae_lite.research.crossval", False), ("danae_lite.research.ahrs_grid", True)):
+    for module, changes in (("danae_lite.research.crossval", False), ("danae_lite.research.memo", False),
+                            ("danae_lite.research.ahrs_grid", True)):
         memo.code_fingerprint.cache_clear()
         monkeypatch.setattr(memo, "module_code", lambda name: read(name) + (b"\n_EDIT = 1\n" if name == module else b""))
         assert (memo.code_fingerprint("danae_lite.research.filters") != before) is changes, module
@@ -123,3 +124,16 @@ def test_a_worker_call_uses_the_store_of_the_process_that_sent_it(store):
     call = memo.carrying_store(_store_in_use)
     memo.use_store(None)
     assert call() == store.folder                        # what a worker process does first
+
+
+def test_code_fingerprint_imports_none_of_the_libraries_it_names():
+    # looking up another library's submodule would import it, with its side effects (tqdm.auto
+    # warns on import in a kernel without widgets): only the package's own modules are looked up
+    import subprocess
+    import sys
+
+    probe = ("import sys; from danae_lite.research import memo; before = set(sys.modules); "
+             "memo.code_fingerprint('danae_lite.research.features'); "
+             "print(sorted(set(sys.modules) - before))")
+    new = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True).stdout
+    assert "tqdm.auto" not in new and "danae_lite.research.crossval" not in new

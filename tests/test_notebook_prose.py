@@ -296,3 +296,4 @@ def test_the_explanation_check_finds_a_figure_left_alone(tmp_path):
     path = tmp_path / "99_probe.ipynb"
     path.write_text(json.dumps(nb))
     assert unexplained_outputs(path) == ["cell 0: figure"]
+

@@ -22,16 +22,16 @@ def test_the_performance_page_shows_the_stored_execution_records():
 
 
 def test_the_readme_quotes_chapter_6_as_stored():
-    chapter6 = nbformat.read(NOTEBOOKS / "06_beyond_the_paper.ipynb", as_version=4)
+    chapter6 = nbformat.read(NOTEBOOKS / "08_learned_denoiser.ipynb", as_version=4)
     assert pages.block(ROOT / "README.md", "results") == pages.results_markdown(chapter6), (
-        f"README.md: the DANAE-res results differ from the stored chapter 6; {REWRITE}")
+        f"README.md: the DANAE-res results differ from the stored chapter 8; {REWRITE}")
 
 
 def test_every_field_of_the_readme_template_is_glued_by_chapter_6():
-    chapter6 = nbformat.read(NOTEBOOKS / "06_beyond_the_paper.ipynb", as_version=4)
+    chapter6 = nbformat.read(NOTEBOOKS / "08_learned_denoiser.ipynb", as_version=4)
     from danae_lite.book import fields
     missing = set(fields(pages.RESULTS)) - set(pages.glued_values(chapter6))
-    assert not missing, f"fields of pages.RESULTS that chapter 6 does not glue: {sorted(missing)}"
+    assert not missing, f"fields of pages.RESULTS that chapter 8 does not glue: {sorted(missing)}"
 
 
 def _notebook(path: Path, seconds: float, trained: int, cached: int, glued=()) -> Path:

@@ -4,7 +4,7 @@
   target jumps by 2π (:data:`ANGLE_CHANNELS`).
 * :func:`multi_input`: the 11 channels of :data:`MULTI_CHANNELS` (a filter's angles, the
   accelerometer's tilt, the tilt-compensated magnetic heading, the Euler rates of the gyro).
-* :data:`CAUSAL_SETTINGS`: the causal network of chapter 6 (the DANAE variant
+* :data:`CAUSAL_SETTINGS`: the causal network of chapter 8 (the DANAE variant
   :func:`danae_lite.research.variants.causal_variant` and DANAE-res, :mod:`danae_lite.research.denoiser`).
 * :func:`run_network`: a trained network over a whole recording, causal or not.
 

@@ -4,7 +4,7 @@ counterpart. Both take a :class:`~danae_lite.core.kalman.KFResult` and the model
 
 * :func:`innovations`: the innovation of every update, the covariance the filter gave it and
   the normalised innovation squared (NIS), a check of a filter's ``Q`` and ``R`` that needs no
-  ground truth (chapter 5).
+  ground truth (chapter 6).
 * :func:`rts_smooth`: the Rauch-Tung-Striebel smoother, each estimate conditioned on all
   samples, past and future (the leaderboard's ``tuned_kf_rts``).
 """

@@ -132,11 +132,12 @@ def _call_with_store(store: RunStore | None, fn: Callable[..., R], *args: Any) -
 def code_fingerprint(module: str) -> str:
     """32 hex digits over what decides the runs computed by ``module``: the code (without
     docstrings and comments) of ``module`` and of every module of this package it imports,
-    directly or not; the installed versions of the other libraries those import; and the CPU
-    vector extensions numpy and torch dispatch to."""
+    directly or not, except this one (which stores and finds runs but computes none); the
+    installed versions of the other libraries those import; and the CPU vector extensions
+    numpy and torch dispatch to."""
     h = hashlib.blake2b(digest_size=16)
     ours, theirs = _import_closure(module)
-    for name in sorted(ours):
+    for name in sorted(ours - {__name__}):  # this module stores and finds runs, computes none
         h.update(name.encode() + b"\0" + module_code(name))
     dists = importlib.metadata.packages_distributions()
     for top in sorted(theirs):
@@ -173,16 +174,17 @@ def _import_closure(module: str) -> tuple[set[str], set[str]]:
 
 def _imports(tree: ast.Module, parent: str) -> Iterator[str]:
     """The absolute names of the modules ``tree`` imports (``from x import y``: ``x.y`` when
-    that is a module, else ``x``); ``parent`` resolves relative imports."""
+    that is a module of this package, else ``x``); ``parent`` resolves relative imports."""
     for node in ast.walk(tree):
         if isinstance(node, ast.Import):
             yield from (alias.name for alias in node.names)
         elif isinstance(node, ast.ImportFrom):
             base = importlib.util.resolve_name("." * node.level + (node.module or ""), parent) \
                 if node.level else node.module or ""
-            for alias in node.names:
+            ours = base.split(".")[0] == __name__.split(".")[0]
+            for alias in node.names:  # another library's modules are not looked up (that imports them)
                 full = f"{base}.{alias.name}"
-                yield full if importlib.util.find_spec(base) and _is_module(full) else base
+                yield full if ours and _is_module(full) else base
 
 
 def _is_module(name: str) -> bool:
