@@ -180,10 +180,10 @@ def write_pages(root: Path, folder: Path) -> None:
         if pages.update_notebook_block(path, "run-time", pages.run_time_markdown(record)):
             print(f"{path.name}: its run time rewritten from its execution record")
     blocks = [(root / "book" / "performance.md", "chapter-times", pages.times_markdown(records))]
-    chapter8 = folder / "08_learned_denoiser.ipynb"
-    if chapter8.is_file():
+    quoted = [folder / f"{c}.ipynb" for c in pages.RESULTS_CHAPTERS]
+    if all(p.is_file() for p in quoted):
         blocks.append((root / "README.md", "results",
-                       pages.results_markdown(nbformat.read(chapter8, as_version=4))))
+                       pages.results_markdown([nbformat.read(p, as_version=4) for p in quoted])))
     for page, name, content in blocks:
         if pages.update_block(page, name, content):
             print(f"{page.relative_to(root)}: block {name!r} rewritten from the stored chapters")

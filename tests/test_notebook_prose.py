@@ -297,3 +297,36 @@ def test_the_explanation_check_finds_a_figure_left_alone(tmp_path):
     path.write_text(json.dumps(nb))
     assert unexplained_outputs(path) == ["cell 0: figure"]
 
+
+
+# ---- chapter size: the research chapters stay readable in one sitting ------------------------
+
+MAX_WORDS = 2600   # "about 2,500"
+MAX_TABLES = 8
+SIZED_FROM = 5     # chapters 1-4 follow the paper's own sections (derivation, data, network, tables)
+
+
+def chapter_size(path: Path) -> tuple[int, int, int]:
+    """Words a reader sees (Markdown cells and prose templates, without code blocks or HTML
+    comments), and the tables and figures shown before the exercises."""
+    words = tables = figures = 0
+    in_exercises = False
+    for cell in _cells(path):
+        text = markdown_of(cell)
+        in_exercises = in_exercises or text.lstrip().startswith("## Exercises")
+        text = re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)
+        text = re.sub(r"<!--.*?-->", "", text, flags=re.S)
+        words += len(re.findall(r"[\w{$\\][^\s]*", text))
+        if not in_exercises:
+            kinds = _shows(cell)
+            tables += kinds.count("table")
+            figures += kinds.count("figure")
+    return words, tables, figures
+
+
+@pytest.mark.parametrize("path", [p for p in NOTEBOOKS if int(p.name[:2]) >= SIZED_FROM], ids=lambda p: p.name)
+def test_a_research_chapter_is_at_most_about_2500_words_and_8_tables(path):
+    words, tables, _ = chapter_size(path)
+    assert words <= MAX_WORDS and tables <= MAX_TABLES, (
+        f"{path.name}: {words} words and {tables} tables (at most {MAX_WORDS} and {MAX_TABLES}): "
+        "split it into two chapters")
