@@ -83,3 +83,25 @@ def test_scores_name_a_bad_clean_mask(recs):
         kf_grid.score_kf_grid(_grid()[:1], recs[:1], {recs[0].name: np.ones(3, bool)})
     with pytest.raises(ValueError, match="no clean sample"):
         kf_grid.score_kf_grid(_grid()[:1], recs[:1], {recs[0].name: np.zeros(len(recs[0]), bool)})
+
+
+def test_the_tuned_kf_search_is_scored_once_and_found_again(recs, monkeypatch):
+    # TunedKF.fit keeps its grid's score table in baselines.searches: a second fit on the same
+    # training data scores nothing and chooses the same Q from the same table
+    clean = {r.name: np.ones(len(r), bool) for r in recs}
+    ctx = baselines.Context(train=list(recs), clean=clean, alignment=FrameAlignment.identity())
+    baselines.searches.clear()
+    first = baselines.TunedKF().fit(ctx)
+    calls = []
+    score = kf_grid.score_kf_grid
+    monkeypatch.setattr(kf_grid, "score_kf_grid", lambda *a, **k: calls.append(1) or score(*a, **k))
+    again = baselines.TunedKF().fit(ctx)
+    assert calls == [] and again.params == first.params
+    assert again.search.equals(first.search)
+    other = baselines.Context(train=list(recs[:1]), clean=clean_of(recs[:1]), alignment=FrameAlignment.identity())
+    baselines.TunedKF().fit(other)                       # other training data: scored again
+    assert calls == [1]
+
+
+def clean_of(recs):
+    return {r.name: np.ones(len(r), bool) for r in recs}

@@ -156,6 +156,12 @@ class PaperKF(Method):
         return [e]
 
 
+searches = RunMemo(64 << 20, code_of=__name__)
+"""Grid searches of :class:`TunedKF` and :class:`LibraryFilter` (their score table per grid
+point), by method, grid and training data: a search is run once, and its many filter runs are
+not stored on disk."""
+
+
 class TunedKF(PaperKF):
     name = "tuned_kf"
     description = "the paper's KF with a wrapped yaw innovation and Q searched jointly on the training recordings (R = I)"
@@ -167,16 +173,30 @@ class TunedKF(PaperKF):
     def fit(self, ctx: Context) -> "TunedKF":
         self.ctx = ctx
         grid = list(itertools.product(KF_Q_ANGLE, KF_Q_BIAS, KF_Q_ANGLE))
-        scores = kf_grid.score_kf_grid([self._config(*g) for g in grid], ctx.train, ctx.clean,
-                                       ctx.alignment.north_yaw)
+        scores = self._search(grid, ctx)
         self.search = pd.DataFrame(grid, columns=["q_tilt", "q_bias", "q_yaw"])
-        self.search["objective"] = scores.total
+        self.search["objective"] = scores[:, 0]
         for j, a in enumerate(ANGLES):
-            self.search[f"rmse_{a}"] = scores.per_angle[:, j]
+            self.search[f"rmse_{a}"] = scores[:, 1 + j]
         best = self.search.loc[self.search["objective"].idxmin()]
         self.params = {"q_tilt": float(best.q_tilt), "q_bias": float(best.q_bias), "q_yaw": float(best.q_yaw)}
         self.config = self._config(**self.params)
         return self
+
+    def _search(self, grid: list[tuple[float, float, float]], ctx: Context) -> Array:
+        """Per grid point, the total-error objective and the clean-sample RMSE [rad] of roll,
+        pitch and yaw over the training recordings, (len(grid), 4)
+        (:func:`~danae_lite.research.kf_grid.score_kf_grid`). A search made before on the same
+        grid, training data and north offset is found in :data:`searches`."""
+        key = ("tuned-kf", tuple(grid), float(ctx.alignment.north_yaw),
+               tuple((r.fs, digest(r.gyro, r.acc, r.mag, r.quat, ctx.clean[r.name])) for r in ctx.train))
+        found = searches.get(key)
+        if found is None:
+            scores = kf_grid.score_kf_grid([self._config(*g) for g in grid], ctx.train, ctx.clean,
+                                           ctx.alignment.north_yaw)
+            found = np.column_stack([scores.total, scores.per_angle])
+            searches.put(key, found)
+        return found
 
 
 class TunedKFSmoother(PaperKF):
@@ -331,11 +351,6 @@ class LinearMap(_OnPaperKF):
         out = np.column_stack([apply_linear_map(self.W[a], x[:, k]) for k, a in enumerate(ANGLES)])
         out[:, 2] = wrap(out[:, 2])
         return [out]
-
-
-searches = RunMemo(64 << 20, code_of=__name__)
-"""Grid searches of :class:`LibraryFilter` (their score table per grid point), by filter, grid
-and training data: a search is run once, and its many filter runs are not stored on disk."""
 
 
 class LibraryFilter(Method):
