@@ -640,3 +640,10 @@ def test_broad_published_script_runs_on_a_synthetic_tree(tmp_broad, tmp_path, ca
     one = main(["--data-dir", str(tmp_broad), "--published-dir", str(pub_dir), "--filters", "mahony",
                 "--trials", "10", "--no-progress"])
     assert list(one["trial"]) == ["10_fast_b"] and list(one["filter"]) == ["mahony"]
+
+
+def test_riann_and_what_is_built_on_it_are_labelled_partly_in_sample_on_broad():
+    assert broad.in_sample_label("riann") == "riann (partly in-sample)"
+    assert broad.in_sample_label("danae-res[riann]") == "danae-res[riann] (partly in-sample)"
+    assert [broad.in_sample_label(m) for m in ("vqf", "danae-res[vqf]", "fusion")] == ["vqf", "danae-res[vqf]",
+                                                                                      "fusion"]

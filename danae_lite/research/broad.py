@@ -76,8 +76,9 @@ from ..core.recording import DataError, Recording
 
 Array = NDArray[np.float64]
 
-__all__ = ["CONVENTIONS", "FS", "QUAT_NORM_TOL", "TrialIndex", "data_mat_dir", "find_trials", "load_experiment",
-           "load_files", "load_trial", "load_trials", "root", "simulated_experiment", "trial_groups", "trial_index"]
+__all__ = ["CONVENTIONS", "FS", "IN_SAMPLE", "QUAT_NORM_TOL", "TrialIndex", "data_mat_dir", "find_trials",
+           "in_sample_label", "load_experiment", "load_files", "load_trial", "load_trials", "root",
+           "simulated_experiment", "trial_groups", "trial_index"]
 
 FS = 2000.0 / 7.0
 """BROAD's sample rate, 285.714 Hz (each file stores its own ``sampling_rate``)."""
@@ -100,6 +101,19 @@ TRAIN_GROUP = "undisturbed"
 """BROAD trials used for fitting (group of ``trials.json``)."""
 TEST_GROUP = "disturbed"
 """BROAD trials used for testing."""
+
+IN_SAMPLE: tuple[str, ...] = ("riann",)
+"""Methods whose published parameters were fitted on data that include most BROAD trials
+(RIANN's network): their BROAD figures, and those of any method built on them, are partly
+in-sample."""
+
+
+def in_sample_label(method: str) -> str:
+    """``method`` as a BROAD table names it: ``"riann (partly in-sample)"`` for a method of
+    :data:`IN_SAMPLE` or one built on it (``"danae-res[riann]"``), else unchanged."""
+    inside = any(m == method or f"[{m}]" in method for m in IN_SAMPLE)
+    return f"{method} (partly in-sample)" if inside else method
+
 
 _TRIAL_RE = re.compile(r"(\d+)_(.+)")
 _REQUIRED: dict[str, int | None] = {
