@@ -81,7 +81,12 @@ def test_gate_is_chosen_on_training_recordings_the_scoring_network_never_saw(boa
     train = {r.name: r for r in m.ctx.train}
     assert m.gate_data == "held-out training recordings"
     assert m.params["gate_folds"] == [[n] for n in train]  # two recordings: each held out once
-    for seed in (0, 1):
+    # the gate's networks are trained with the first seed only; its gains serve every seed
+    assert set(m.gate_results) == {(0, 0), (1, 0)}
+    assert m.results[1].config.val_stride == 64 - 30  # the research budget (features.research_config)
+    np.testing.assert_array_equal(m.gains[1], m.gains[0])
+    assert m.params["gate_rmse_rad"][1] == m.params["gate_rmse_rad"][0]
+    for seed in (0,):
         assert set(m.gains[seed]) <= set(GATE_GAINS)
         pairs = []
         for k, (held,) in enumerate(m.params["gate_folds"]):

@@ -41,6 +41,20 @@ def test_one_network_per_head_and_seed_equals_train(recs, data):
     assert not _same(nets[("pitch", 0)], nets[("pitch", 3)])
 
 
+def test_seeds_per_head(data):
+    """A head may train fewer seeds than another (DANAE-res's gate networks: the first only)."""
+    _, xs, ys = data
+    cfg = TrainConfig(max_steps=3, num_threads=1)
+    nets = networks.train_networks(xs, ys, cfg, seeds={"roll": (0, 3), "pitch": (3,)})
+    assert set(nets) == {("roll", 0), ("roll", 3), ("pitch", 3)}
+    both = networks.train_networks(xs, ys, cfg, seeds=(0, 3))
+    assert _same(nets[("pitch", 3)], both[("pitch", 3)]) and _same(nets[("roll", 0)], both[("roll", 0)])
+    with pytest.raises(ValueError, match="heads"):
+        networks.train_networks(xs, ys, cfg, seeds={"roll": (0,)})
+    with pytest.raises(ValueError, match="pitch"):
+        networks.train_networks(xs, ys, cfg, seeds={"roll": (0,), "pitch": ()})
+
+
 def test_bad_arguments_are_named(data):
     _, xs, ys = data
     with pytest.raises(ValueError, match="same heads"):

@@ -65,6 +65,39 @@ def test_validation_tail_is_the_held_out_block(trained):
     tails = [validation_tail(n, 20, 0.1) for n in (1500, 1200, 1800)]
     assert trained.n_val_windows == sum(t - 19 for t in tails)
 
+def test_strided_validation_windows_tile_the_tail_and_score_what_they_say():
+    """val_stride = window - loss_start: windows start every 12 samples of each tail and the
+    validation loss is the MSE of exactly those windows from position loss_start on,
+    recomputed here with the returned network (float32 forward, float64 sums on both sides:
+    the same operations in the same order, so equal to float32 rounding of one sum)."""
+    from danae_lite.core.train import validation_tail
+
+    xs, ys = dataset()
+    cfg = small(max_steps=30, val_every=30, loss_start=8, val_stride=12)
+    r = train(xs, ys, cfg, progress=False)
+    tails = [validation_tail(len(x), 20, 0.1) for x in xs]
+    assert r.n_val_windows == sum((t - 20) // 12 + 1 for t in tails)
+    wins_x, wins_y = [], []
+    for x, y, t in zip(xs, ys, tails):
+        starts = range(len(x) - t, len(x) - 20 + 1, 12)
+        wins_x += [x[i : i + 20] for i in starts]
+        wins_y += [y[i : i + 20] for i in starts]
+    xw = torch.tensor(np.array(wins_x), dtype=torch.float32)[:, None, :]
+    yw = torch.tensor(np.array(wins_y), dtype=torch.float32)[:, None, :]
+    with torch.no_grad():
+        d = (r.model(xw) - yw)[..., 8:]
+    mse = float((d.double() ** 2).sum()) / d.numel()
+    assert r.history["val_loss"].iloc[-1] == pytest.approx(mse, rel=1e-6)
+    # the training itself does not depend on how validation is cut
+    same = train(xs, ys, small(max_steps=30, val_every=30, loss_start=8, restore_best=False), progress=False)
+    last = train(xs, ys, small(max_steps=30, val_every=30, loss_start=8, val_stride=12, restore_best=False),
+                 progress=False)
+    for k, v in same.model.state_dict().items():
+        assert torch.equal(v, last.model.state_dict()[k])
+    with pytest.raises(ValueError, match="val_stride"):
+        small(val_stride=0)
+
+
 def test_predict_shapes_and_stitching(trained):
     x, _ = recording(613, 0.0, seed=5)
     over = predict(trained, x)

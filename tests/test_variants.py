@@ -98,3 +98,25 @@ def test_selected_variant_is_chosen_on_validation_blocks_only():
     chosen = {c.name: c for c in sel.candidates}[sel.params["chosen"]]
     np.testing.assert_array_equal(board.predictions["danae-selected"][recs[0].name][0],
                                   chosen.predict(sel.ctx.alignment.apply(recs[0]))[0])
+
+
+def test_research_budget_caps_steps_and_tiles_validation():
+    """Chapters 8-9's networks validate on windows window - loss_start apart; DANAE-res's
+    (capped) take at most RESEARCH_MAX_STEPS steps (a smaller cap, fast mode's, wins) with a
+    check every RESEARCH_VAL_EVERY steps; the variants keep the context's epoch."""
+    from danae_lite.research.denoiser import DanaeRes
+    from danae_lite.research.features import (CAUSAL_SETTINGS, RESEARCH_MAX_STEPS, RESEARCH_VAL_EVERY,
+                                              research_config)
+
+    capped = research_config(TrainConfig(epochs=1), 2, capped=True, normalize="standard")
+    assert (capped.max_steps, capped.val_every, capped.val_stride, capped.seed) == (
+        RESEARCH_MAX_STEPS, RESEARCH_VAL_EVERY, 20, 2)
+    causal = research_config(TrainConfig(), 0, capped=True, **CAUSAL_SETTINGS)
+    assert causal.val_stride == 64 - 30 and causal.window == 64
+    fast = research_config(TrainConfig(max_steps=40), 0, capped=True)
+    assert (fast.max_steps, fast.val_every) == (40, 40)
+    free = research_config(TrainConfig(epochs=1), 0, capped=False)
+    assert (free.max_steps, free.val_every, free.val_stride) == (None, None, 20)
+    for method, steps in ((DanaeOn("vqf"), None), (DanaeRes("vqf"), RESEARCH_MAX_STEPS)):
+        method.ctx = type("Ctx", (), {"train_config": TrainConfig(epochs=1)})()
+        assert method.config(0).max_steps == steps

@@ -280,7 +280,7 @@ def train_networks(
     inputs: Mapping[str, Sequence[Array]],
     targets: Mapping[str, Sequence[Array]],
     config: TrainConfig,
-    seeds: Sequence[int],
+    seeds: Sequence[int] | Mapping[str, Sequence[int]],
     *,
     masks: Sequence[NDArray[np.bool_]] | Mapping[str, Sequence[NDArray[np.bool_]]] | None = None,
     tag: str = "danae",
@@ -296,7 +296,7 @@ def train_networks(
     inputs, targets : ``{head: [array per training recording]}``, the same heads in both;
         arrays (N,) or (N, C) in the units of the signal (rad for angles).
     config : training settings; its ``seed`` is replaced by each of ``seeds``.
-    seeds : training seeds (distinct).
+    seeds : training seeds (distinct): one list for every head, or ``{head: list}``.
     masks : per training recording, the target samples allowed in the loss: one list shared by
         the heads, or ``{head: list}`` when the heads train on different recordings.
     tag : file-name prefix in the cache (``<tag>-<head>``).
@@ -310,9 +310,13 @@ def train_networks(
     """
     if set(inputs) != set(targets):
         raise ValueError(f"inputs and targets must have the same heads, got {sorted(inputs)} and {sorted(targets)}")
-    seeds = [int(s) for s in seeds]
-    if not seeds or len(set(seeds)) != len(seeds):
-        raise ValueError(f"seeds must be distinct and non-empty, got {seeds}")
+    per_head = seeds if isinstance(seeds, Mapping) else {head: seeds for head in inputs}
+    if set(per_head) != set(inputs):
+        raise ValueError(f"seeds must have the heads of the inputs, got {sorted(per_head)} and {sorted(inputs)}")
+    per_head = {head: [int(s) for s in per_head[head]] for head in inputs}
+    for head, ss in per_head.items():
+        if not ss or len(set(ss)) != len(ss):
+            raise ValueError(f"seeds of head {head!r} must be distinct and non-empty, got {ss}")
     if isinstance(masks, Mapping) and set(masks) != set(inputs):
         raise ValueError(f"masks must have the heads of the inputs, got {sorted(masks)} and {sorted(inputs)}")
     keys, work = [], []
@@ -321,7 +325,7 @@ def train_networks(
         m = None if mh is None else tuple(np.ascontiguousarray(x, dtype=bool) for x in mh)
         xs = tuple(np.ascontiguousarray(a) for a in inputs[head])
         ys = tuple(np.ascontiguousarray(a) for a in targets[head])
-        for seed in seeds:
+        for seed in per_head[head]:
             keys.append((head, seed))
             work.append(NetworkJob(xs, ys, m, replace(config, seed=seed), f"{tag}-{head}",
                                    {**(metadata or {}), "head": head, "seed": seed}))

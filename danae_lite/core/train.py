@@ -231,10 +231,10 @@ def _split(
     return xs_tr, ys_tr, xs_va, ys_va
 
 
-def _valid_windows(masks: list[np.ndarray], window: int) -> np.ndarray:
-    """For the stride-1 windows of each recording (in :func:`_to_windows` order): True when
-    every target sample in the window is usable."""
-    return np.concatenate([sliding_windows(m, window).all(axis=1) for m in masks])
+def _valid_windows(masks: list[np.ndarray], window: int, stride: int = 1) -> np.ndarray:
+    """For the windows of each recording, ``stride`` samples apart (in :func:`_to_windows`
+    order): True when every target sample in the window is usable."""
+    return np.concatenate([sliding_windows(m, window, stride).all(axis=1) for m in masks])
 
 
 @dataclass
@@ -260,14 +260,15 @@ class _Blocks:
 
 
 def _split_blocks(xs: list[np.ndarray], ys: list[np.ndarray], masks: list[np.ndarray] | None,
-                  window: int, val_fraction: float) -> _Blocks:
-    """Split every recording (and its mask) into a training head and a validation tail."""
+                  window: int, val_fraction: float, val_stride: int = 1) -> _Blocks:
+    """Split every recording (and its mask) into a training head and a validation tail
+    (validation windows ``val_stride`` samples apart)."""
     xs_tr, ys_tr, xs_va, ys_va = _split(xs, ys, window, val_fraction)
     if masks is None:
         return _Blocks(xs_tr, ys_tr, xs_va, ys_va, x_stat=xs_tr, y_stat=ys_tr)
     _, ms_tr, _, ms_va = _split(xs, masks, window, val_fraction)
     keep_tr = torch.from_numpy(_valid_windows(ms_tr, window))
-    keep_va = torch.from_numpy(_valid_windows(ms_va, window)) if ms_va else None
+    keep_va = torch.from_numpy(_valid_windows(ms_va, window, val_stride)) if ms_va else None
     if not bool(keep_tr.any()):
         raise ValueError("no training window is free of masked target samples")
     # standardisation statistics from usable samples only
@@ -291,9 +292,9 @@ def _new_network(cfg: TrainConfig, blocks: _Blocks, c_in: int, c_out: int, devic
     return net.to(device)
 
 
-def _to_windows(recs: list[np.ndarray], window: int, device: str) -> torch.Tensor:
-    """Stride-1 windows of each recording, as a (n, C, L) float32 tensor."""
-    w = windows_from_recordings(recs, window, stride=1)  # (n, L, C)
+def _to_windows(recs: list[np.ndarray], window: int, device: str, stride: int = 1) -> torch.Tensor:
+    """Windows of each recording, ``stride`` samples apart, as a (n, C, L) float32 tensor."""
+    w = windows_from_recordings(recs, window, stride=stride)  # (n, L, C)
     return torch.from_numpy(np.ascontiguousarray(w.transpose(0, 2, 1))).to(device)
 
 
@@ -343,8 +344,9 @@ class _Windows:
         return _mse(net, self.x_val, self.y_val, cfg.eval_batch_size, cfg.loss_start)
 
 
-def _cut_windows(blocks: _Blocks, net: DanaeBase, window: int, device: str) -> _Windows:
-    """Stride-1 windows of the training heads (standardised) and validation tails, masked windows left out."""
+def _cut_windows(blocks: _Blocks, net: DanaeBase, window: int, device: str, val_stride: int = 1) -> _Windows:
+    """Stride-1 windows of the training heads (standardised) and windows ``val_stride`` apart
+    of the validation tails, masked windows left out."""
     x_tr, y_tr = _to_windows(blocks.x_train, window, device), _to_windows(blocks.y_train, window, device)
     if blocks.keep_train is not None:
         x_tr, y_tr = x_tr[blocks.keep_train.to(device)], y_tr[blocks.keep_train.to(device)]
@@ -353,7 +355,8 @@ def _cut_windows(blocks: _Blocks, net: DanaeBase, window: int, device: str) -> _
     y_tr_n = (y_tr - net.out_mean) / net.out_std
     x_va = y_va = None
     if blocks.x_val:
-        x_va, y_va = _to_windows(blocks.x_val, window, device), _to_windows(blocks.y_val, window, device)
+        x_va = _to_windows(blocks.x_val, window, device, val_stride)
+        y_va = _to_windows(blocks.y_val, window, device, val_stride)
         if blocks.keep_val is not None:
             x_va, y_va = x_va[blocks.keep_val.to(device)], y_va[blocks.keep_val.to(device)]
         if len(x_va) == 0:  # every validation window holds a masked target
@@ -546,8 +549,9 @@ def train(
 
     Notes
     -----
-    Windows are cut per recording with stride 1 and never span two recordings (nor the
-    border between a recording's training and validation blocks). They are shuffled each
+    Training windows are cut per recording with stride 1 (validation windows with
+    ``config.val_stride``) and never span two recordings (nor the border between a
+    recording's training and validation blocks). They are shuffled each
     epoch with a ``torch.Generator`` seeded from ``config.seed``; the last batch of an epoch
     may be smaller. On CPU, with the same seed, data and thread count, two runs give
     bit-identical networks (``torch.use_deterministic_algorithms`` is on while training).
@@ -558,9 +562,9 @@ def train(
     on_cpu = torch.device(device).type == "cpu"
     with TorchSettings(cfg.num_threads or _default_threads(), deterministic=on_cpu):
         seed_everything(cfg.seed)
-        blocks = _split_blocks(xs, ys, masks, cfg.window, cfg.val_fraction)
+        blocks = _split_blocks(xs, ys, masks, cfg.window, cfg.val_fraction, cfg.val_stride)
         net = _new_network(cfg, blocks, xs[0].shape[1], ys[0].shape[1], device)
-        data = _cut_windows(blocks, net, cfg.window, device)
+        data = _cut_windows(blocks, net, cfg.window, device, cfg.val_stride)
         schedule = _Schedule.of(data.n_train, cfg)
         bar = _progress_bar(progress, schedule.total_steps, cfg.arch)
         t0 = time.perf_counter()

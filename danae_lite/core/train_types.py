@@ -55,6 +55,12 @@ class TrainConfig:
         :func:`~danae_lite.core.train.validation_tail`). 0 disables validation.
     val_every : int or None
         Steps between validation checks; ``None`` means ten checks per epoch.
+    val_stride : int
+        Step between the starts of the validation windows. 1 (the paper's way): every window
+        of the validation tail. ``window - loss_start``: the scored positions of the windows
+        tile the tail, each validation sample scored once (but the tail's first
+        ``loss_start`` samples and a remainder shorter than a stride), where stride-1 windows
+        score a sample up to ``window - loss_start`` times over, at as many forward passes.
     patience : int or None
         Stop after this many validation checks without improvement; ``None``: never stop early.
     min_delta : float
@@ -99,6 +105,7 @@ class TrainConfig:
     loss_scale: float = 1.0
     val_fraction: float = 0.1
     val_every: int | None = None
+    val_stride: int = 1
     patience: int | None = None
     min_delta: float = 0.0
     restore_best: bool = True
@@ -122,7 +129,7 @@ class TrainConfig:
             raise ValueError(f"val_fraction={self.val_fraction} must be in [0, 1)")
         if len(self.betas) != 2:
             raise ValueError(f"betas needs two values, got {self.betas}")
-        for name in ("window", "batch_size", "epochs", "eval_batch_size"):
+        for name in ("window", "batch_size", "epochs", "eval_batch_size", "val_stride"):
             if getattr(self, name) < 1:
                 raise ValueError(f"{name} must be >= 1, got {getattr(self, name)}")
         for name in ("val_every", "patience", "max_steps", "num_threads"):

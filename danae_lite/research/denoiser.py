@@ -32,8 +32,11 @@ networks or the training loop (:func:`danae_lite.core.networks.train_networks`):
   a network trained on the other folds corrects that fold's recordings (clean samples). A
   network's validation tail would flatter it: it shares its recording's frame offsets and
   motion with the samples the network trained on, and what the network learns of one
-  recording does not transfer to the next. ``g = 0`` falls back to the filter. With a single
-  training recording, the validation tails are all there is, and ``gate_data`` says so.
+  recording does not transfer to the next. ``g = 0`` falls back to the filter. The gate's
+  networks are trained with the first seed only and its gains serve every seed's prediction
+  network (the seed spread is that of the prediction networks). With a single training
+  recording, the validation tails (of each seed's network) are all there is, and
+  ``gate_data`` says so.
   Nothing of the test recordings takes part.
 * **Angles the filter does not estimate** (RIANN gives no yaw: NaN throughout): their filter
   channels enter the network as a constant, their target is zero, their gain is 0 and the
@@ -45,7 +48,6 @@ frame of the aligned recordings; yaw differences are wrapped to [-pi, pi).
 """
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -53,7 +55,8 @@ from numpy.typing import NDArray
 
 from ..core.angles import wrap
 from .baselines import make_method
-from .features import ANGLE_CHANNELS, CAUSAL_SETTINGS, MULTI_CHANNELS, multi_input, run_network, to_circle
+from .features import (ANGLE_CHANNELS, CAUSAL_SETTINGS, MULTI_CHANNELS, multi_input, research_config,
+                       run_network, to_circle)
 from .methods import Context, Method
 from ..core.networks import train_networks
 from ..core.recording import Recording
@@ -138,8 +141,8 @@ class DanaeRes(Method):
     --------------------------
     results : seed -> :class:`~danae_lite.core.train.TrainResult` (networks with the feature
         standardisation and the target scale in their buffers).
-    gate_results : (inner fold, seed) -> the network trained without that fold's recordings.
-    gains : seed -> (3,) gain per angle.
+    gate_results : (inner fold, first seed) -> the network trained without that fold's recordings.
+    gains : seed -> (3,) gain per angle (the same for every seed when the gate has inner folds).
     gate_data : what the gate was chosen on ("held-out training recordings" or "validation tails").
     missing : (3,) bool, the angles ``source`` gives no estimate of (corrected: never).
     params : the settings, the chosen gains and the gate's RMSE per gain and angle.
@@ -170,8 +173,9 @@ class DanaeRes(Method):
         return MULTI_CHANNELS if self.inputs == "multi" else ANGLE_CHANNELS
 
     def config(self, seed: int) -> TrainConfig:
-        """Training settings of the network of ``seed`` (data standardised here, not by ``train``)."""
-        return replace(self.ctx.train_config, seed=int(seed), normalize="none", **self.overrides)
+        """Training settings of the network of ``seed`` (data standardised here, not by
+        ``train``), with DANAE-res's budget of steps (:func:`~danae_lite.research.features.research_config`)."""
+        return research_config(self.ctx.train_config, seed, capped=True, normalize="none", **self.overrides)
 
     def features(self, rec: Recording, est: Array) -> Array:
         """Input channels (N, C) for the aligned recording ``rec`` and the filter's estimate ``est`` (N, 3) [rad]
@@ -255,8 +259,9 @@ class DanaeRes(Method):
         folds = self._gate_folds([r.name for r in ctx.train])
         nets = self._train(folds, x, y, cfg)
         self.results: dict[int, TrainResult] = {seed: nets[("joint", seed)] for seed in map(int, ctx.seeds)}
+        first = int(ctx.seeds[0])
         self.gate_results: dict[tuple[int, int], TrainResult] = {
-            (k, int(seed)): nets[(f"without-{k}", int(seed))] for k in range(len(folds)) for seed in ctx.seeds}
+            (k, first): nets[(f"without-{k}", first)] for k in range(len(folds))}
         self.gate_data = "held-out training recordings" if folds else "validation tails"
         scores = self._choose_gains(nets, folds, x, est, cfg)
         self.params = {"source": self.source, "inputs": list(self.channels()), "residual": self.residual,
@@ -271,8 +276,9 @@ class DanaeRes(Method):
     def _train(self, folds: list[list[str]], x: dict[str, Array], y: dict[str, Array],
                cfg: TrainConfig) -> dict[tuple[str, int], TrainResult]:
         """The networks per head and seed: ``"joint"`` (every training recording, for
-        prediction) and ``"without-k"`` (all but inner fold ``k``, for the gate), each with its
-        standardisation in its buffers; sets :attr:`scaling` (the joint network's)."""
+        prediction; every seed) and ``"without-k"`` (all but inner fold ``k``, for the gate;
+        the first seed), each with its standardisation in its buffers; sets :attr:`scaling`
+        (the joint network's)."""
         ctx = self.ctx
         sets = {"joint": list(ctx.train)}
         for k, held in enumerate(folds):
@@ -281,8 +287,9 @@ class DanaeRes(Method):
         prepared = {head: self._prepare(recs, x, y, cfg, np.random.default_rng([seed, i]) if i else
                                         np.random.default_rng(seed))
                     for i, (head, recs) in enumerate(sets.items())}
+        seeds = {h: list(ctx.seeds) if h == "joint" else [seed] for h in sets}
         nets = train_networks({h: p[0] for h, p in prepared.items()}, {h: p[1] for h, p in prepared.items()}, cfg,
-                              ctx.seeds, masks={h: p[2] for h, p in prepared.items()}, tag="denoiser",
+                              seeds, masks={h: p[2] for h, p in prepared.items()}, tag="denoiser",
                               metadata={"method": self.name, "offset_rad": self.offset_rad, "residual": self.residual,
                                         "train": [r.name for r in ctx.train]},
                               cache=ctx.cache, jobs=ctx.jobs, progress=ctx.progress)
@@ -294,14 +301,19 @@ class DanaeRes(Method):
 
     def _choose_gains(self, nets: dict[tuple[str, int], TrainResult], folds: list[list[str]], x: dict[str, Array],
                       est: dict[str, Array], cfg: TrainConfig) -> dict[int, dict[str, list[float]]]:
-        """The gate: per seed and angle, the gain of :data:`GATE_GAINS` with the lowest RMSE on
-        clean samples no network it scores has trained on: each inner fold's recordings for that
-        fold's network or (one training recording) the validation tails of the prediction
-        network. Sets :attr:`gains`; returns the RMSE [rad] per seed, angle and gain."""
+        """The gate: per angle, the gain of :data:`GATE_GAINS` with the lowest RMSE on clean
+        samples no network it scores has trained on: each inner fold's recordings for that
+        fold's network (first seed; the gains serve every seed) or, with one training
+        recording, per seed the validation tails of that seed's prediction network. Sets
+        :attr:`gains`; returns the RMSE [rad] per seed, angle and gain."""
         by_name = {r.name: r for r in self.ctx.train}
         self.gains: dict[int, Array] = {}
         scores: dict[int, dict[str, list[float]]] = {}
+        first = int(self.ctx.seeds[0])
         for seed in map(int, self.ctx.seeds):
+            if folds and seed != first:  # one gate for every seed
+                self.gains[seed], scores[seed] = self.gains[first], scores[first]
+                continue
             pairs = ([(nets[(f"without-{k}", seed)], by_name[n], np.ones(len(by_name[n]), bool))
                       for k, held in enumerate(folds) for n in held] if folds else
                      [(nets[("joint", seed)], r, _tail(len(r), cfg)) for r in self.ctx.train])

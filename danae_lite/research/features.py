@@ -6,12 +6,15 @@
   accelerometer's tilt, the tilt-compensated magnetic heading, the Euler rates of the gyro).
 * :data:`CAUSAL_SETTINGS`: the causal network of chapter 8 (the DANAE variant
   :func:`danae_lite.research.variants.causal_variant` and DANAE-res, :mod:`danae_lite.research.denoiser`).
+* :func:`research_config` and :data:`RESEARCH_MAX_STEPS`: how the networks of chapters 8 and 9
+  are validated, and DANAE-res's budget of optimiser steps.
 * :func:`run_network`: a trained network over a whole recording, causal or not.
 
 Used by :mod:`danae_lite.research.variants` and :mod:`danae_lite.research.denoiser`.
 """
 from __future__ import annotations
 
+from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -23,7 +26,7 @@ from .memo import RunMemo, digest
 from .methods import PREDICT_STRIDE
 from .streaming import predict_causal
 from ..core.inference import predict
-from ..core.train import TrainResult
+from ..core.train import TrainConfig, TrainResult
 
 Array = NDArray[np.float64]
 
@@ -38,6 +41,33 @@ CAUSAL_SETTINGS: dict[str, Any] = {"arch": "causal", "hidden": 64, "window": 64,
 :class:`~danae_lite.core.train.TrainConfig` overrides: 64 channels, dilations 1-8 (receptive field 31
 samples), trained on 64-sample windows with the loss on positions 30-63 only, where the full
 past is inside the window."""
+
+RESEARCH_MAX_STEPS: int = 1500
+"""Optimiser steps (of 16 windows) at most per DANAE-res network (:mod:`danae_lite.research.denoiser`),
+with a validation check every :data:`RESEARCH_VAL_EVERY` steps. The budget comes from the
+validation losses of full-epoch DANAE-res networks (2,000-10,000 steps on this book's data), on
+the tails of their training recordings, nothing of a test recording: their lowest loss within
+the first 1,500 steps was, in the median, their lowest of the whole epoch (90th percentile
+16-21 % higher). The paper-sized variants of :mod:`danae_lite.research.variants` lose more
+(a median of 10 %) and keep the paper's one epoch."""
+RESEARCH_VAL_EVERY: int = 300
+"""Steps between the validation checks of a capped network (five in a full budget)."""
+
+
+def research_config(base: TrainConfig, seed: int, *, capped: bool, **overrides: Any) -> TrainConfig:
+    """Training settings of a network of chapters 8-9: ``base`` (the context's settings:
+    device, fast-mode cap) with ``overrides`` and the seed, validated on windows
+    ``window - loss_start`` apart (every validation sample scored once instead of up to
+    ``window - loss_start`` times: the same loss, a fraction of the forward passes). With
+    ``capped`` (DANAE-res): at most :data:`RESEARCH_MAX_STEPS` steps (or the smaller cap
+    ``base`` has) and a check every :data:`RESEARCH_VAL_EVERY` steps (or at the end of a
+    shorter run)."""
+    cfg = replace(base, seed=int(seed), **overrides)
+    cfg = replace(cfg, val_stride=cfg.window - cfg.loss_start)
+    if not capped:
+        return cfg
+    steps = RESEARCH_MAX_STEPS if cfg.max_steps is None else min(cfg.max_steps, RESEARCH_MAX_STEPS)
+    return replace(cfg, max_steps=steps, val_every=min(RESEARCH_VAL_EVERY, steps))
 
 
 def to_circle(euler: Array) -> Array:

@@ -23,7 +23,6 @@ The input channels, the causal settings and the network runner are shared with D
 """
 from __future__ import annotations
 
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -32,7 +31,8 @@ from numpy.typing import NDArray
 
 from .baselines import make_method
 from ..core.datasets import Experiment
-from .features import ANGLE_CHANNELS, CAUSAL_SETTINGS, MULTI_CHANNELS, from_circle, multi_input, run_network, to_circle
+from .features import (ANGLE_CHANNELS, CAUSAL_SETTINGS, MULTI_CHANNELS, from_circle, multi_input,
+                       research_config, run_network, to_circle)
 from .leaderboard import run_leaderboard
 from .methods import Context, Method, total_error_rmse
 from ..core.metrics import reduction_pct
@@ -78,7 +78,10 @@ class DanaeOn(Method):
         return to_circle(est)
 
     def config(self, seed: int) -> TrainConfig:
-        return replace(self.ctx.train_config, seed=int(seed), normalize="standard", **self.overrides)
+        """Training settings of the network of ``seed``: the context's (one epoch, as the
+        paper), standardised data and the overrides, validated on tiling windows
+        (:func:`~danae_lite.research.features.research_config`)."""
+        return research_config(self.ctx.train_config, seed, capped=False, normalize="standard", **self.overrides)
 
     def fit(self, ctx: Context) -> DanaeOn:
         if self.source == "danae":
