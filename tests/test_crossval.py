@@ -158,3 +158,20 @@ def test_no_harm_on_broad_trials_uses_the_benchmark_figures_in_degrees():
     s = cv.no_harm_summary().loc[("danae-res[vqf]", "vqf")]
     assert s.loc["total RMSE [deg]", "worse_on"] == 1 and s.loc["inclination RMSE [deg]", "worse_on"] == 0
     assert s.loc["total RMSE [deg]", "worst_change_pct"] == pytest.approx(-50.0)
+
+
+def test_splits_in_workers_train_their_networks_together_first(cv_res, motions, tmp_path, monkeypatch):
+    """jobs=2 with a cache: the networks of every split are trained in one pool first
+    (crossval._pretrain), then the splits run in the workers and find them; the rows are
+    those of one process without a cache, exactly (one torch thread everywhere)."""
+    pooled = []
+    pretrain = crossval.pretrain
+    monkeypatch.setattr(crossval, "pretrain", lambda js, **kw: pooled.append(pretrain(js, **kw)) or pooled[-1])
+    splits = crossval.leave_one_out(motions["handheld"], "handheld")
+    cv2 = crossval.run_splits(splits, name="oxiod", data="simulated",
+                              methods=("paper_kf", "riann", "danae-res[paper_kf]", "danae-res[riann]"),
+                              seeds=(0,), train_config=TrainConfig(max_steps=3, num_threads=1), progress=False,
+                              cache=tmp_path, jobs=2)
+    # 3 splits x 2 denoisers x (1 prediction network + 2 inner-fold gate networks)
+    assert pooled == [18] and len(list(tmp_path.glob("*.pt"))) == 18
+    pd.testing.assert_frame_equal(cv2.rows, cv_res.rows)

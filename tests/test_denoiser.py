@@ -231,3 +231,26 @@ def test_an_estimate_missing_on_some_samples_only_is_refused_naming_the_recordin
     est["good"][:, 2] = 0.0   # yaw on one recording, none on the other: refused
     with pytest.raises(ValueError, match="yaw on training recording 'bad'"):
         m._missing_angles(est)
+
+
+def test_a_pooled_leaderboard_trains_first_what_each_fit_then_finds(board, tmp_path, monkeypatch):
+    """With a cache and two workers, the leaderboard trains every method's networks together
+    first (Method.network_jobs, networks.pretrain); the fits find them all and the predictions
+    are those of the leaderboard without cache or workers, to the bit (one torch thread in
+    both: the same float32 operations in the same order)."""
+    from danae_lite.research import leaderboard
+
+    pooled = []
+    pretrain = leaderboard.pretrain
+    monkeypatch.setattr(leaderboard, "pretrain", lambda js, **kw: pooled.append(pretrain(js, **kw)) or pooled[-1])
+    exp = board.experiment
+    extra = [DanaeRes("vqf", hidden=16), DanaeRes("paper_kf", inputs="angles", arch="paper", window=20,
+                                                  loss_start=0, name="res-paper")]
+    again = run_leaderboard(exp, methods=["paper_kf", "vqf"], seeds=(0, 1), train_config=board.train_config,
+                            progress=False, extra=extra, cache=tmp_path, jobs=2)
+    # per method: the prediction network of each of 2 seeds, the gate's 2 inner-fold networks
+    assert pooled == [8] and len(list(tmp_path.glob("*.pt"))) == 8
+    for name in ("danae-res[vqf]", "res-paper"):
+        for rec in exp.test:
+            for a, b in zip(again.predictions[name][rec.name], board.predictions[name][rec.name]):
+                np.testing.assert_array_equal(a, b)

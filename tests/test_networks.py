@@ -209,3 +209,38 @@ def test_the_worker_pool_stays_up_between_calls_and_survives_an_error():
     second = set(networks.in_processes(os.getpid, [()] * 6, processes=2, threads=1))
     assert os.getpid() not in first and len(first | second) <= 2
     assert list(networks.in_processes(int, [("4",), ("5",)], processes=2, threads=1)) == [4, 5]
+
+
+def test_pretrain_trains_once_what_the_fits_then_find(data, tmp_path, monkeypatch):
+    # train_networks = network_jobs + run_jobs: pretrain trains those jobs in the workers and
+    # stores them; a later train_networks with the same arguments then trains nothing
+    _, xs, ys = data
+    cfg = TrainConfig(max_steps=6, num_threads=1)
+    keys, jobs = networks.network_jobs(xs, ys, cfg, (0, 1), tag="t")
+    assert keys == [(a, s) for a in ("roll", "pitch") for s in (0, 1)]
+    assert networks.pretrain(jobs, cache=None, jobs=2) == 0  # no cache: nothing to keep them in
+    assert networks.pretrain(jobs, cache=tmp_path, jobs=1) == 0  # one process: nothing to pool
+    assert not list(tmp_path.iterdir())
+    in_process = networks.train_networks(xs, ys, cfg, (0, 1))
+    assert networks.pretrain([*jobs, jobs[0]], cache=tmp_path, jobs=2) == 4  # the repeated job once
+    assert len(list(tmp_path.glob("*.pt"))) == 4
+    assert networks.pretrain(jobs, cache=tmp_path, jobs=2) == 0
+    monkeypatch.setattr(networks, "_run", lambda *a: pytest.fail("a network was trained again"))
+    found = networks.train_networks(xs, ys, cfg, (0, 1), tag="t", cache=tmp_path)
+    # one torch thread in a worker and here: the same operations in the same order, same bits
+    assert all(_same(found[k], in_process[k]) for k in keys)
+
+
+def test_pretrain_starts_the_largest_training_first(recs, monkeypatch):
+    cfg = TrainConfig(window=20, batch_size=16, epochs=1)
+    small = _job([np.zeros(100), np.zeros(50)], [np.zeros(100), np.zeros(50)], cfg)
+    # (100 - 20 + 1) + (50 - 20 + 1) = 112 windows, 112 / 16 = 7 steps of 20 samples
+    assert networks._work(small) == pytest.approx(7 * 20)
+    large = _job([np.zeros(400)], [np.zeros(400)], cfg)
+    capped = _job([np.zeros(400)], [np.zeros(400)], TrainConfig(window=20, batch_size=16, max_steps=3))
+    assert networks._work(capped) == 3 * 20
+    order = []
+    monkeypatch.setattr(networks, "_cached", lambda job, store: None)
+    monkeypatch.setattr(networks, "run_jobs", lambda js, **kw: order.extend(js))
+    assert networks.pretrain([small, capped, large], cache="unused", jobs=2) == 3
+    assert order == [large, small, capped]

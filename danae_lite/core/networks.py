@@ -272,6 +272,31 @@ def run_jobs(jobs_: Sequence[NetworkJob], *, cache: str | os.PathLike[str] | Non
     return [r for r in results if r is not None]
 
 
+def pretrain(jobs_: Sequence[NetworkJob], *, cache: str | os.PathLike[str] | None, jobs: int) -> int:
+    """Train the networks of ``jobs_`` that ``cache`` lacks, all in one pool of ``jobs`` worker
+    processes, and store them there: what a caller does before fitting several methods or
+    splits one after the other, so that every worker stays busy (three seeds on two workers
+    would leave one idle a third of the time). The fits then find their networks in the cache.
+    The largest trainings start first (:func:`_work`); the same network asked for twice (one
+    :func:`cache_key`) is trained once. Nothing is
+    trained without a cache or with one process. Returns the number of networks trained."""
+    store = as_cache(cache)
+    if store is None or jobs <= 1:
+        return 0
+    missing = {cache_key(j): j for j in jobs_ if _cached(j, store) is None}
+    run_jobs(sorted(missing.values(), key=_work, reverse=True), cache=store, jobs=jobs)
+    return len(missing)
+
+
+def _work(job: NetworkJob) -> float:
+    """A rough measure of a training's work, to start the largest first (the last to finish
+    then keeps a worker idle for less): optimiser steps times window length."""
+    c = job.config
+    windows = sum(max(0, len(x) - c.window + 1) for x in job.inputs)
+    steps = c.epochs * windows / c.batch_size
+    return min(steps, c.max_steps or steps) * c.window
+
+
 def _threads(config: TrainConfig, threads: int) -> TrainConfig:
     return config if config.num_threads is not None else replace(config, num_threads=threads)
 
@@ -308,6 +333,22 @@ def train_networks(
     dict
         ``{(head, seed): TrainResult}``.
     """
+    keys, work = network_jobs(inputs, targets, config, seeds, masks=masks, tag=tag, metadata=metadata)
+    return dict(zip(keys, run_jobs(work, cache=cache, jobs=jobs, progress=progress)))
+
+
+def network_jobs(
+    inputs: Mapping[str, Sequence[Array]],
+    targets: Mapping[str, Sequence[Array]],
+    config: TrainConfig,
+    seeds: Sequence[int] | Mapping[str, Sequence[int]],
+    *,
+    masks: Sequence[NDArray[np.bool_]] | Mapping[str, Sequence[NDArray[np.bool_]]] | None = None,
+    tag: str = "danae",
+    metadata: Mapping[str, Any] | None = None,
+) -> tuple[list[tuple[str, int]], list[NetworkJob]]:
+    """The ``(head, seed)`` keys and the jobs that :func:`train_networks` trains, in the same
+    order, for the same arguments; without training (e.g. for :func:`pretrain`)."""
     if set(inputs) != set(targets):
         raise ValueError(f"inputs and targets must have the same heads, got {sorted(inputs)} and {sorted(targets)}")
     per_head = seeds if isinstance(seeds, Mapping) else {head: seeds for head in inputs}
@@ -329,4 +370,4 @@ def train_networks(
             keys.append((head, seed))
             work.append(NetworkJob(xs, ys, m, replace(config, seed=seed), f"{tag}-{head}",
                                    {**(metadata or {}), "head": head, "seed": seed}))
-    return dict(zip(keys, run_jobs(work, cache=cache, jobs=jobs, progress=progress)))
+    return keys, work

@@ -15,8 +15,9 @@ own: one row per split, test recording, method, sample subset and angle. Splits 
 independent, so ``jobs`` > 1 runs them in worker processes
 (:func:`danae_lite.core.networks.in_processes`: ``spawn`` start, ``cores // jobs`` torch
 threads each, kept for the life of the process, so that a worker's filter runs and network
-outputs, :mod:`danae_lite.research.memo`, serve later splits too); with a single split the
-workers train its networks instead.
+outputs, :mod:`danae_lite.research.memo`, serve later splits too), after the workers have
+trained the networks of all splits together, into the cache (:func:`_pretrain`); with a single
+split the workers train its networks instead.
 
 Aggregation (:class:`CrossValidation`): per recording the mean over seeds, then the mean and
 sample standard deviation over held-out recordings (:func:`danae_lite.core.metrics.spread`), and
@@ -40,10 +41,10 @@ from . import broad_benchmark
 from ..core import metrics
 from ..core.angles import ANGLES
 from ..core.datasets import Experiment
-from .leaderboard import Leaderboard, run_leaderboard, trial_figures
+from .leaderboard import Leaderboard, network_jobs, run_leaderboard, trial_figures
 from .memo import carrying_store
 from .methods import Method
-from ..core.networks import in_processes, threads_per_process
+from ..core.networks import in_processes, pretrain, threads_per_process
 from ..core.recording import Recording
 from .registry import METHODS
 from ..core.scoring import plain, score_rows
@@ -320,6 +321,17 @@ def _run_one(split: Split, name: str, data: str, aligned: bool, methods: Sequenc
     return rows, trials, params, time.perf_counter() - t0
 
 
+def _pretrain(splits: Sequence[Split], name: str, data: str, aligned: bool, methods: Sequence[str],
+              extra: Sequence[Method], seeds: Sequence[int], train_config: TrainConfig,
+              cache: str | os.PathLike[str] | None, jobs: int) -> None:
+    """Train the networks of every split together (:func:`~danae_lite.core.networks.pretrain`):
+    the splits then run in parallel and find them in the cache, instead of each training its
+    own while the other workers may be idle."""
+    pretrain([j for s in splits for j in network_jobs(
+        Experiment(name, data, list(s.train), list(s.test), s.name, aligned=aligned), methods=methods,
+        extra=[copy.deepcopy(m) for m in extra], seeds=seeds, train_config=train_config)], cache=cache, jobs=jobs)
+
+
 def run_splits(
     splits: Sequence[Split],
     *,
@@ -361,6 +373,7 @@ def run_splits(
     common = (name, data, aligned, tuple(methods), tuple(extra), tuple(int(s) for s in seeds))
     bar = tqdm(total=len(splits), desc=f"{name} splits", unit="split", disable=not progress)
     if jobs > 1 and len(splits) > 1:
+        _pretrain(splits, *common, cfg, cache, jobs)
         threads = threads_per_process(jobs)
         worker_cfg = cfg if cfg.num_threads is not None else _with_threads(cfg, threads)
         calls = [(s, *common, worker_cfg, cache, 1) for s in splits]

@@ -58,7 +58,7 @@ from .baselines import make_method
 from .features import (ANGLE_CHANNELS, CAUSAL_SETTINGS, MULTI_CHANNELS, multi_input, research_config,
                        run_network, to_circle)
 from .methods import Context, Method
-from ..core.networks import train_networks
+from ..core.networks import NetworkJob, network_jobs, train_networks
 from ..core.recording import Recording
 from .streaming import StreamingDanae
 from ..core.train import TrainConfig, TrainResult, validation_tail
@@ -249,14 +249,8 @@ class DanaeRes(Method):
     def fit(self, ctx: Context) -> DanaeRes:
         """Train the prediction network and the gate's networks on ``ctx.train`` (one per seed
         each) and choose the gains; see the class docstring for the attributes set."""
-        self.ctx = ctx
-        self.base = ctx.method(self.source)
+        est, x, y, folds = self._data(ctx)
         cfg = self.config(ctx.seeds[0])
-        est = {r.name: self.base.predict(r)[0] for r in ctx.train}
-        self.missing = self._missing_angles(est)
-        x = {r.name: self.features(r, est[r.name]) for r in ctx.train}
-        y = {r.name: self._target(r, est[r.name]) for r in ctx.train}
-        folds = self._gate_folds([r.name for r in ctx.train])
         nets = self._train(folds, x, y, cfg)
         self.results: dict[int, TrainResult] = {seed: nets[("joint", seed)] for seed in map(int, ctx.seeds)}
         first = int(ctx.seeds[0])
@@ -273,12 +267,27 @@ class DanaeRes(Method):
                        "gate_rmse_rad": scores, "source_params": self.base.params}
         return self
 
-    def _train(self, folds: list[list[str]], x: dict[str, Array], y: dict[str, Array],
-               cfg: TrainConfig) -> dict[tuple[str, int], TrainResult]:
-        """The networks per head and seed: ``"joint"`` (every training recording, for
-        prediction; every seed) and ``"without-k"`` (all but inner fold ``k``, for the gate;
-        the first seed), each with its standardisation in its buffers; sets :attr:`scaling`
-        (the joint network's)."""
+    def _data(self, ctx: Context) -> tuple[dict[str, Array], dict[str, Array], dict[str, Array], list[list[str]]]:
+        """The source's estimate, the features and the targets per training recording of
+        ``ctx``, and the gate's inner folds; sets :attr:`ctx`, :attr:`base` and :attr:`missing`."""
+        self.ctx = ctx
+        self.base = ctx.method(self.source)
+        est = {r.name: self.base.predict(r)[0] for r in ctx.train}
+        self.missing = self._missing_angles(est)
+        x = {r.name: self.features(r, est[r.name]) for r in ctx.train}
+        y = {r.name: self._target(r, est[r.name]) for r in ctx.train}
+        return est, x, y, self._gate_folds([r.name for r in ctx.train])
+
+    def network_jobs(self, ctx: Context) -> list[NetworkJob]:
+        _, x, y, folds = self._data(ctx)
+        return network_jobs(**self._training(folds, x, y, self.config(ctx.seeds[0]))[1])[1]
+
+    def _training(self, folds: list[list[str]], x: dict[str, Array], y: dict[str, Array], cfg: TrainConfig
+                  ) -> tuple[dict[str, Any], dict[str, Any]]:
+        """The standardised data and scaling per head (:meth:`_prepare`), and the arguments of
+        :func:`~danae_lite.core.networks.train_networks`: head ``"joint"`` (every training
+        recording, for prediction; every seed) and ``"without-k"`` (all but inner fold ``k``,
+        for the gate; the first seed)."""
         ctx = self.ctx
         sets = {"joint": list(ctx.train)}
         for k, held in enumerate(folds):
@@ -288,11 +297,19 @@ class DanaeRes(Method):
                                         np.random.default_rng(seed))
                     for i, (head, recs) in enumerate(sets.items())}
         seeds = {h: list(ctx.seeds) if h == "joint" else [seed] for h in sets}
-        nets = train_networks({h: p[0] for h, p in prepared.items()}, {h: p[1] for h, p in prepared.items()}, cfg,
-                              seeds, masks={h: p[2] for h, p in prepared.items()}, tag="denoiser",
-                              metadata={"method": self.name, "offset_rad": self.offset_rad, "residual": self.residual,
-                                        "train": [r.name for r in ctx.train]},
-                              cache=ctx.cache, jobs=ctx.jobs, progress=ctx.progress)
+        return prepared, {"inputs": {h: p[0] for h, p in prepared.items()},
+                          "targets": {h: p[1] for h, p in prepared.items()}, "config": cfg, "seeds": seeds,
+                          "masks": {h: p[2] for h, p in prepared.items()}, "tag": "denoiser",
+                          "metadata": {"method": self.name, "offset_rad": self.offset_rad,
+                                       "residual": self.residual, "train": [r.name for r in ctx.train]}}
+
+    def _train(self, folds: list[list[str]], x: dict[str, Array], y: dict[str, Array],
+               cfg: TrainConfig) -> dict[tuple[str, int], TrainResult]:
+        """The networks per head and seed (:meth:`_training`), each with its standardisation in
+        its buffers; sets :attr:`scaling` (the joint network's)."""
+        ctx = self.ctx
+        prepared, kwargs = self._training(folds, x, y, cfg)
+        nets = train_networks(**kwargs, cache=ctx.cache, jobs=ctx.jobs, progress=ctx.progress)
         for (head, _), res in nets.items():
             sc = prepared[head][3]
             res.model.set_normalization(sc["in_mean"], sc["in_std"], sc["out_mean"], sc["out_std"])

@@ -41,6 +41,7 @@ from ..core.alignment import FrameAlignment, estimate_alignment
 from ..core.angles import ANGLES, euler_to_quat
 from ..core.datasets import Experiment
 from ..core.groundtruth import clean_mask, glitch_table
+from ..core.networks import NetworkJob, pretrain
 from .methods import Context, Method
 from ..core.recording import Recording
 from .registry import METHODS, is_method_name, make_method
@@ -289,10 +290,8 @@ def run_leaderboard(
     t_total = time.perf_counter()
     todo = _check_names(exp, methods, extra)
     clean = {r.name: clean_mask(r) for r in [*exp.train, *exp.test]}
-    alignment, aligned_train, aligned_test = _align(exp, clean, align)
-    ctx = Context(train=aligned_train, clean={r.name: clean[r.name] for r in exp.train}, alignment=alignment,
-                  seeds=tuple(int(s) for s in seeds), train_config=train_config or TrainConfig(), cache=cache,
-                  jobs=jobs, progress=progress, factory=make_method)
+    ctx, aligned_test = _context(exp, clean, seeds, train_config, align, cache=cache, jobs=jobs, progress=progress)
+    pretrain(_network_jobs(todo, ctx), cache=cache, jobs=jobs)  # every worker busy
     fitted: dict[str, Method] = {}
     preds: dict[str, dict[str, list[NDArray[np.float64]]]] = {}
     seconds: dict[str, float] = {}
@@ -307,9 +306,38 @@ def run_leaderboard(
         rows += _rows(name, bool(m.causal), preds[name], exp, clean)
     seconds["total"] = time.perf_counter() - t_total
     table = pd.DataFrame(rows, columns=list(CSV_COLUMNS))
-    return Leaderboard(experiment=exp, table=table, methods=fitted, predictions=preds, alignment=alignment,
+    return Leaderboard(experiment=exp, table=table, methods=fitted, predictions=preds, alignment=ctx.alignment,
                        glitches=glitch_table([*exp.train, *exp.test]), clean=clean, seconds=seconds,
                        seeds=ctx.seeds, train_config=ctx.train_config)
+
+
+def _network_jobs(todo: Sequence[Method | str], ctx: Context) -> list[NetworkJob]:
+    """The networks the methods ``todo`` (names or objects) train when fitted on ``ctx``
+    (:meth:`~danae_lite.research.methods.Method.network_jobs`), for :func:`pretrain`."""
+    return [j for item in todo for j in (make_method(item) if isinstance(item, str) else item).network_jobs(ctx)]
+
+
+def network_jobs(exp: Experiment, *, methods: Sequence[str] = METHODS, seeds: Sequence[int] = (0, 1, 2),
+                 train_config: TrainConfig | None = None, extra: Sequence[Method] = (), align: bool | None = None
+                 ) -> list[NetworkJob]:
+    """The networks :func:`run_leaderboard` trains with these arguments, as jobs, without
+    training them: what :func:`danae_lite.research.crossval.run_splits` trains for all of its
+    splits together before it runs them. ``extra`` objects are given their context (use copies)."""
+    todo = _check_names(exp, methods, extra)
+    clean = {r.name: clean_mask(r) for r in [*exp.train, *exp.test]}
+    return _network_jobs(todo, _context(exp, clean, seeds, train_config, align)[0])
+
+
+def _context(exp: Experiment, clean: dict[str, NDArray[np.bool_]], seeds: Sequence[int],
+             train_config: TrainConfig | None, align: bool | None, **settings: Any
+             ) -> tuple[Context, list[Recording]]:
+    """The fitting context of the methods (``settings``: cache, jobs, progress) and the test
+    recordings as they see them (:func:`_align`)."""
+    alignment, aligned_train, aligned_test = _align(exp, clean, align)
+    ctx = Context(train=aligned_train, clean={r.name: clean[r.name] for r in exp.train}, alignment=alignment,
+                  seeds=tuple(int(s) for s in seeds), train_config=train_config or TrainConfig(),
+                  factory=make_method, **settings)
+    return ctx, aligned_test
 
 
 def _check_names(exp: Experiment, methods: Sequence[str], extra: Sequence[Method]) -> list[Method | str]:

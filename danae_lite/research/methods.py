@@ -25,6 +25,7 @@ from numpy.typing import NDArray
 from ..core.alignment import FrameAlignment
 from ..core.angles import euler_error_angle
 from ..core.metrics import errors, rmse
+from ..core.networks import NetworkJob
 from ..core.recording import Recording
 from ..core.train import TrainConfig
 
@@ -71,6 +72,12 @@ class Method:
     def predict(self, rec: Recording) -> list[Array]:
         """Roll, pitch, yaw (N, 3) [rad] of the aligned recording ``rec``, one array per seed."""
         raise NotImplementedError
+
+    def network_jobs(self, ctx: Context) -> list[NetworkJob]:
+        """The networks ``fit(ctx)`` trains, as jobs, without training them (none here): a
+        caller fitting several methods or splits trains them together first
+        (:func:`danae_lite.core.networks.pretrain`), and each ``fit`` finds its own in the cache."""
+        return []
 
 
 @dataclass

@@ -36,7 +36,7 @@ from .features import (ANGLE_CHANNELS, CAUSAL_SETTINGS, MULTI_CHANNELS, from_cir
 from .leaderboard import run_leaderboard
 from .methods import Context, Method, total_error_rmse
 from ..core.metrics import reduction_pct
-from ..core.networks import train_networks
+from ..core.networks import NetworkJob, network_jobs, train_networks
 from ..core.recording import Recording
 from ..core.train import TrainConfig, validation_tail
 
@@ -83,17 +83,24 @@ class DanaeOn(Method):
         (:func:`~danae_lite.research.features.research_config`)."""
         return research_config(self.ctx.train_config, seed, capped=False, normalize="standard", **self.overrides)
 
-    def fit(self, ctx: Context) -> DanaeOn:
+    def _training(self, ctx: Context) -> dict[str, Any]:
+        """The arguments of :func:`~danae_lite.core.networks.train_networks` for ``ctx``
+        (sets :attr:`ctx` and :attr:`base`, the fitted source)."""
         if self.source == "danae":
             raise ValueError("a DANAE variant cannot take DANAE's own output as its source")
         self.ctx = ctx
         self.base = ctx.method(self.source)
-        xs = {"joint": [self._features(r) for r in ctx.train]}
-        ys = {"joint": [to_circle(r.euler) for r in ctx.train]}
-        masks = [ctx.clean[r.name] for r in ctx.train]
-        nets = train_networks(xs, ys, self.config(ctx.seeds[0]), ctx.seeds, masks=masks, tag="variant",
-                              metadata={"variant": self.name, "train": [r.name for r in ctx.train]},
-                              cache=ctx.cache, jobs=ctx.jobs, progress=ctx.progress)
+        return {"inputs": {"joint": [self._features(r) for r in ctx.train]},
+                "targets": {"joint": [to_circle(r.euler) for r in ctx.train]},
+                "config": self.config(ctx.seeds[0]), "seeds": ctx.seeds,
+                "masks": [ctx.clean[r.name] for r in ctx.train], "tag": "variant",
+                "metadata": {"variant": self.name, "train": [r.name for r in ctx.train]}}
+
+    def network_jobs(self, ctx: Context) -> list[NetworkJob]:
+        return network_jobs(**self._training(ctx))[1]
+
+    def fit(self, ctx: Context) -> DanaeOn:
+        nets = train_networks(**self._training(ctx), cache=ctx.cache, jobs=ctx.jobs, progress=ctx.progress)
         self.results = {seed: res for (_, seed), res in nets.items()}
         cfg = self.config(ctx.seeds[0])
         self.params = {"source": self.source, "inputs": list(self._channels()), "arch": cfg.arch,
