@@ -125,3 +125,22 @@ def test_cli_leaderboard_errors(tmp_path, capsys):
     assert code == 2 and "invalid choice" in capsys.readouterr().err
     code = cli.main(["leaderboard", "--data-dir", str(tmp_path), "--out", str(tmp_path / "o")])
     assert code == 2 and "no oxiod/ folder" in capsys.readouterr().err
+
+
+def test_the_papers_danae_lists_the_networks_its_fit_trains(tmp_path):
+    """Danae.network_jobs: the jobs of its fit (one per angle and seed), so that a pooled
+    leaderboard finds every one of its networks in the cache afterwards."""
+    from danae_lite.core import networks
+    from danae_lite.research.baselines import Danae
+    from danae_lite.research.leaderboard import _context
+    from danae_lite.core.groundtruth import clean_mask
+
+    recs = [simulate("handheld", duration=6.0, seed=s, name=f"j{s}") for s in range(3)]
+    exp = Experiment("oxiod", "simulated", recs[1:], recs[:1], "jobs")
+    ctx, _ = _context(exp, {r.name: clean_mask(r) for r in recs}, (0, 2), TrainConfig(max_steps=2, num_threads=1),
+                      None, cache=tmp_path)
+    jobs = Danae().network_jobs(ctx)
+    assert [(j.tag, j.config.seed) for j in jobs] == [("danae-" + a, s) for a in ("roll", "pitch", "yaw") for s in (0, 2)]
+    Danae().fit(ctx)
+    stored = sorted(p.name.rsplit("-", 1)[1][:-3] for p in tmp_path.glob("*.pt"))
+    assert stored == sorted(networks.cache_key(j) for j in jobs)

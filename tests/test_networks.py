@@ -244,3 +244,14 @@ def test_pretrain_starts_the_largest_training_first(recs, monkeypatch):
     monkeypatch.setattr(networks, "run_jobs", lambda js, **kw: order.extend(js))
     assert networks.pretrain([small, capped, large], cache="unused", jobs=2) == 3
     assert order == [large, small, capped]
+
+
+def _sigint_handler() -> str:
+    import signal
+
+    return "ignored" if signal.getsignal(signal.SIGINT) == signal.SIG_IGN else "raised"
+
+
+def test_workers_leave_ctrl_c_to_the_parent():
+    # an interrupted or shut-down notebook kernel sends SIGINT to its workers too: they ignore it
+    assert list(networks.in_processes(_sigint_handler, [()], processes=2, threads=1)) == ["ignored"]

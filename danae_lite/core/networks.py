@@ -192,10 +192,17 @@ def _run(job: NetworkJob, progress: bool) -> TrainResult:
                  target_masks=None if job.masks is None else list(job.masks))
 
 
-def _set_torch_threads(threads: int) -> None:
-    """Worker-process initialiser: ``threads`` torch CPU threads."""
+def _init_worker(threads: int) -> None:
+    """Worker-process initialiser: ``threads`` torch CPU threads, and Ctrl-C (SIGINT) left to
+    the parent process, which cancels the calls not yet started (:func:`in_processes`); a
+    worker finishes the call it is running. (A notebook's kernel sends SIGINT to its whole
+    process group when it is interrupted or shut down: each worker would otherwise print a
+    ``KeyboardInterrupt`` traceback.)"""
+    import signal
+
     import torch
 
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
     torch.set_num_threads(threads)
 
 
@@ -217,7 +224,7 @@ def worker_pool(processes: int, threads: int) -> ProcessPoolExecutor:
     pool = _POOLS.get(key)
     if pool is None or getattr(pool, "_broken", False):
         pool = ProcessPoolExecutor(max_workers=key[0], mp_context=get_context("spawn"),
-                                   initializer=_set_torch_threads, initargs=(key[1],))
+                                   initializer=_init_worker, initargs=(key[1],))
         _POOLS[key] = pool
     return pool
 

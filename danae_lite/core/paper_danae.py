@@ -23,7 +23,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .angles import ANGLES, wrap
-from .networks import train_networks
+from .networks import NetworkJob, network_jobs, train_networks
 from .inference import predict
 from .train import TrainConfig, TrainResult
 
@@ -84,17 +84,29 @@ class PaperDanae:
         truths : the ground truth (N, 3) [rad] of the same recordings.
         masks : per recording, the target samples allowed in the loss (e.g. the clean ones); None: all.
         """
+        self.results_: dict[tuple[str, int], TrainResult] = train_networks(
+            *self._heads(estimates, truths), self.config, self.seeds, masks=masks, tag=self.tag,
+            metadata=self.metadata, cache=self.cache, jobs=self.jobs, progress=self.progress)
+        self.seconds_ = float(sum(r.seconds for r in self.results_.values()))
+        return self
+
+    def network_jobs(self, estimates: Sequence[Array], truths: Sequence[Array],
+                     masks: Sequence[NDArray[np.bool_]] | None = None) -> list[NetworkJob]:
+        """The networks :meth:`fit` trains with the same arguments, as jobs, without training
+        them (:func:`danae_lite.core.networks.pretrain` trains those of several fits together)."""
+        return network_jobs(*self._heads(estimates, truths), self.config, self.seeds, masks=masks, tag=self.tag,
+                            metadata=self.metadata)[1]
+
+    def _heads(self, estimates: Sequence[Array], truths: Sequence[Array]) -> tuple[dict[str, list[Array]],
+                                                                                    dict[str, list[Array]]]:
+        """Input and target per angle and training recording (see the module docstring)."""
         xs, ys = {}, {}
         for a in self.angles:
             k = ANGLES.index(a)
             xs[a] = [x[:, k] for x in estimates]
             ys[a] = ([y[:, k] for y in truths] if self.targets == "raw" else
                      [continuous_target(x[:, k], y[:, k]) for x, y in zip(estimates, truths)])
-        self.results_: dict[tuple[str, int], TrainResult] = train_networks(
-            xs, ys, self.config, self.seeds, masks=masks, tag=self.tag, metadata=self.metadata, cache=self.cache,
-            jobs=self.jobs, progress=self.progress)
-        self.seconds_ = float(sum(r.seconds for r in self.results_.values()))
-        return self
+        return xs, ys
 
     def predict(self, est: Array, *, stitch: str = "overlap", stride: int = 1) -> list[Array]:
         """Denoised roll, pitch, yaw (N, 3) [rad] of one recording's filter estimate ``est``

@@ -71,6 +71,7 @@ from ..core import kalman
 from ..core.angles import ANGLES, wrap
 from .memo import RunMemo, digest
 from .methods import Method, total_error_rmse, total_objective, train_objective
+from ..core.networks import NetworkJob
 from ..core.paper_danae import PaperDanae, check_settings, continuous_target
 from ..core.recording import Recording
 from ..core.windows import sliding_windows, stitch_overlap_average
@@ -439,13 +440,23 @@ class Danae(_OnPaperKF):
             self.description = (f"the paper's DANAE per angle on the paper KF's output, {targets} targets, "
                                 f"{'glitch-free' if clean_targets else 'every'} target sample")
 
-    def fit(self, ctx: Context) -> Danae:
+    def _model(self, ctx: Context) -> tuple[PaperDanae, tuple[list[Array], list[Array], list[NDArray[np.bool_]] | None]]:
+        """The unfitted networks and the arguments of their ``fit``: the paper KF's angles, the
+        truth and the clean masks of the training recordings."""
         super().fit(ctx)
-        self.model = PaperDanae(self.angles, targets=self.targets, config=ctx.train_config, seeds=ctx.seeds,
-                                tag=self.name, metadata={"method": self.name, "train": [r.name for r in ctx.train]},
-                                cache=ctx.cache, jobs=ctx.jobs, progress=ctx.progress)
-        self.model.fit([self.kf_train[r.name] for r in ctx.train], [r.euler for r in ctx.train],
+        model = PaperDanae(self.angles, targets=self.targets, config=ctx.train_config, seeds=ctx.seeds,
+                           tag=self.name, metadata={"method": self.name, "train": [r.name for r in ctx.train]},
+                           cache=ctx.cache, jobs=ctx.jobs, progress=ctx.progress)
+        return model, ([self.kf_train[r.name] for r in ctx.train], [r.euler for r in ctx.train],
                        [ctx.clean[r.name] for r in ctx.train] if self.clean_targets else None)
+
+    def network_jobs(self, ctx: Context) -> list[NetworkJob]:
+        model, args = self._model(ctx)
+        return model.network_jobs(*args)
+
+    def fit(self, ctx: Context) -> Danae:
+        self.model, args = self._model(ctx)
+        self.model.fit(*args)
         self.results = self.model.results_
         cfg = ctx.train_config
         self.params = {"arch": cfg.arch, "window": cfg.window, "lr": cfg.lr, "batch_size": cfg.batch_size,
