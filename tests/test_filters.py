@@ -300,3 +300,18 @@ def test_enu_to_nwu_is_scipys_composition_bit_for_bit():
     for x in (q, q_vqf, q * 3.0):
         scipy_way = (filters._ENU_TO_NWU * Rotation.from_quat(x)).as_quat()
         np.testing.assert_array_equal(filters._enu_to_nwu(x), scipy_way)
+
+
+def test_a_grid_searchs_runs_are_not_kept_a_single_run_is_the_library_path():
+    # whether or not a search ran first, run_filter of the chosen setting computes the same
+    # bits: the one-pass grid (float64 rounding away from the library) is not reused for it
+    rec = _moving_noisy(3.0)
+    grid = [{"gain": b} for b in (0.01, 0.041, 0.08)]
+    filters.memo.clear()
+    searched = filters.run_many([("madgwick", rec.gyro, rec.acc, rec.mag, rec.fs, p) for p in grid],
+                                persist=False)
+    assert filters.memo.nbytes == 0
+    single = filters.run_filter("madgwick", rec.gyro, rec.acc, rec.mag, rec.fs, gain=0.041)
+    library = filters.madgwick(rec.gyro, rec.acc, rec.mag, rec.fs, gain=0.041)
+    np.testing.assert_array_equal(single, library)
+    assert 0 < np.abs(searched[1] - library).max() < 1e-9  # the two paths differ, in rounding only

@@ -267,8 +267,11 @@ def run_many(calls: Sequence[tuple[str, ArrayLike, ArrayLike, ArrayLike | None, 
     :mod:`danae_lite.research.ahrs_grid`). With ``jobs`` > 1 the groups are computed in that
     many worker processes (:func:`~danae_lite.core.networks.in_processes`, one torch thread
     each) and stored here: a grid search is where the other cores help. ``persist=False``
-    keeps the computed runs in memory only, not in the memo's store on disk (a grid search's
-    many runs, of which one is used afterwards)."""
+    returns the computed runs without keeping them (a grid search's many runs, of which one is
+    used afterwards): a later :func:`run_filter` of the chosen setting computes it by the one
+    path of a single run, so that a filter's output, and any network trained on it, does not
+    depend on whether a search ran before it in the process (the one-pass grid agrees with the
+    library to float64 rounding, not bit for bit)."""
     for name, *_ in calls:
         if name not in FILTERS:
             raise ValueError(f"unknown filter {name!r}; choose one of {', '.join(FILTERS)}")
@@ -289,7 +292,8 @@ def run_many(calls: Sequence[tuple[str, ArrayLike, ArrayLike, ArrayLike | None, 
     computed: dict[tuple[Any, ...], Array] = {}
     for runs, qs in zip(groups.values(), results):
         for key, q in zip(runs, qs):
-            memo.put(key, q, persist=persist)
+            if persist:
+                memo.put(key, q)
             computed[key] = q
     return [found if found is not None else computed[keys[i]] for i, found in enumerate(out)]
 

@@ -245,11 +245,11 @@ class RunMemo:
         self.hits += 1
         return found.copy()
 
-    def put(self, key: tuple[Any, ...], value: Array, persist: bool = True) -> None:
-        """Keep ``value`` under ``key``: in memory, and in the store unless ``persist`` is False."""
+    def put(self, key: tuple[Any, ...], value: Array) -> None:
+        """Keep ``value`` under ``key``: in memory, and in the store when there is one."""
         if self._bypass or key in self._items:
             return
-        if persist and _store is not None:
+        if _store is not None:
             _store.save(self._name(key), value)
         self._remember(key, value.copy())
 
