@@ -144,3 +144,6 @@ def test_the_papers_danae_lists_the_networks_its_fit_trains(tmp_path):
     Danae().fit(ctx)
     stored = sorted(p.name.rsplit("-", 1)[1][:-3] for p in tmp_path.glob("*.pt"))
     assert stored == sorted(networks.cache_key(j) for j in jobs)
+    # validated on windows that tile the tails (the research networks' way) unless told otherwise
+    assert {j.config.val_stride for j in jobs} == {20}
+    assert {j.config.val_stride for j in Danae(val_stride=1).network_jobs(ctx)} == {1}

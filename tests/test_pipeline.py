@@ -110,8 +110,9 @@ def test_reproduce_equals_the_leaderboards_paper_kf_and_danae(recs):
     exp = Experiment("oxiod", "simulated", recs[1:], recs[:1], "tiny simulated data")
     cfg = TrainConfig(max_steps=5, num_threads=1)
     rep = pipeline.reproduce(exp, angles=ANGLES, seeds=(0, 1), config=cfg, progress=False, log=None)
-    board = run_leaderboard(exp, methods=(), extra=[PaperKF(), Danae(targets="raw", clean_targets=False, stride=1)],
-                            seeds=(0, 1), train_config=cfg, progress=False, align=False)
+    paper = Danae(targets="raw", clean_targets=False, stride=1, val_stride=1)
+    board = run_leaderboard(exp, methods=(), extra=[PaperKF(), paper], seeds=(0, 1), train_config=cfg,
+                            progress=False, align=False)
     for samples in ("all", "clean"):
         kf, danae = rep.metrics_on(samples)
         rows = board.table[board.table.samples == samples].set_index(["method", "angle"])

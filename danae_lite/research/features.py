@@ -55,7 +55,8 @@ RESEARCH_VAL_EVERY: int = 300
 
 
 def research_config(base: TrainConfig, seed: int, *, capped: bool, **overrides: Any) -> TrainConfig:
-    """Training settings of a network of chapters 8-9: ``base`` (the context's settings:
+    """Training settings of a research network (chapters 5-9: the variants, DANAE-res and the
+    leaderboard's paper DANAE): ``base`` (the context's settings:
     device, fast-mode cap) with ``overrides`` and the seed, validated on windows
     ``window - loss_start`` apart (every validation sample scored once instead of up to
     ``window - loss_start`` times: the same loss, a fraction of the forward passes). With
