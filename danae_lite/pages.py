@@ -7,7 +7,7 @@ Three places quote what the stored chapters hold:
 * each chapter's opening Markdown cell, its own run time (:func:`run_time_markdown`; a Markdown
   cell, so writing it leaves the chapter's record valid);
 * ``README.md``, the measured case for the recommended denoiser: :data:`RESULTS` filled with the
-  values chapters 8 and 9 glued (:func:`glued_values`, :func:`danae_lite.book.fill`).
+  values chapters 9 and 10 glued (:func:`glued_values`, :func:`danae_lite.book.fill`).
 
 Each sits between two marker lines, ``<!-- begin NAME: ... -->`` and ``<!-- end NAME -->``
 (invisible on GitHub, in the book and in JupyterLab). ``python -m danae_lite.execute`` rewrites both after
@@ -25,11 +25,11 @@ from .book import fill
 
 _RECORD = "application/papermill.record/"
 
-# The README's paragraph on DANAE-res; its fields are names chapters 8 and 9 glue.
-RESULTS_CHAPTERS: tuple[str, ...] = ("08_learned_denoiser", "09_no_harm")
+# The README's paragraph on DANAE-res; its fields are names chapters 9 and 10 glue.
+RESULTS_CHAPTERS: tuple[str, ...] = ("09_danae_res", "10_no_harm")
 """The chapters whose glued values :data:`RESULTS` quotes, in order (a later one's value wins)."""
 RESULTS = """\
-Measured in chapter 8 on real OxIOD, holding out one handheld recording at a time (the methods
+Measured in chapter 9 on real OxIOD, holding out one handheld recording at a time (the methods
 fitted on the other handheld recordings, three seeds): on roll, {ch6_cmp_roll_res} has an RMSE
 of {ch6_cmp_roll_res_rmse:.4f} rad against {ch6_cmp_roll_lib_rmse:.4f} rad for
 {ch6_cmp_roll_lib}, the best library filter on roll (a reduction of {ch6_cmp_roll_red:+.1f} %,
@@ -39,7 +39,7 @@ better on {ch6_cmp_roll_wins} held-out recordings); on pitch, {ch6_cmp_pitch_res
 {ch6_cmp_pitch_wins}). Fitted on BROAD's undisturbed trials and tested on its {ch6_cmpb_ntrials}
 disturbed ones, DANAE-res behind VQF has a mean total error of {ch6_cmpb_res_vqf:.2f}° against
 VQF's {ch6_cmpb_vqf:.2f}°, and its roll is worse than its filter's on {ch6_nhb_vqf_roll_worse}
-trials behind VQF and on {ch6_nhb_riann_roll_worse} behind RIANN (chapter 9)."""
+trials behind VQF and on {ch6_nhb_riann_roll_worse} behind RIANN (chapter 10)."""
 
 
 def marker_lines(name: str) -> tuple[str, str]:

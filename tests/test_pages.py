@@ -25,16 +25,16 @@ def _quoted_chapters():
     return [nbformat.read(NOTEBOOKS / f"{c}.ipynb", as_version=4) for c in pages.RESULTS_CHAPTERS]
 
 
-def test_the_readme_quotes_chapters_8_and_9_as_stored():
+def test_the_readme_quotes_chapters_9_and_10_as_stored():
     assert pages.block(ROOT / "README.md", "results") == pages.results_markdown(_quoted_chapters()), (
-        f"README.md: the DANAE-res results differ from the stored chapters 8 and 9; {REWRITE}")
+        f"README.md: the DANAE-res results differ from the stored chapters 9 and 10; {REWRITE}")
 
 
-def test_every_field_of_the_readme_template_is_glued_by_chapters_8_and_9():
+def test_every_field_of_the_readme_template_is_glued_by_chapters_9_and_10():
     from danae_lite.book import fields
     glued = {k for nb in _quoted_chapters() for k in pages.glued_values(nb)}
     missing = set(fields(pages.RESULTS)) - glued
-    assert not missing, f"fields of pages.RESULTS that chapters 8 and 9 do not glue: {sorted(missing)}"
+    assert not missing, f"fields of pages.RESULTS that chapters 9 and 10 do not glue: {sorted(missing)}"
 
 
 def _notebook(path: Path, seconds: float, trained: int, cached: int, glued=()) -> Path:

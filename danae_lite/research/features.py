@@ -6,7 +6,7 @@
   accelerometer's tilt, the tilt-compensated magnetic heading, the Euler rates of the gyro).
 * :data:`CAUSAL_SETTINGS`: the causal network of chapter 8 (the DANAE variant
   :func:`danae_lite.research.variants.causal_variant` and DANAE-res, :mod:`danae_lite.research.denoiser`).
-* :func:`research_config` and :data:`RESEARCH_MAX_STEPS`: how the networks of chapters 8 and 9
+* :func:`research_config` and :data:`RESEARCH_MAX_STEPS`: how the networks of chapters 8 to 10
   are validated, and DANAE-res's budget of optimiser steps.
 * :func:`run_network`: a trained network over a whole recording, causal or not.
 
