@@ -3,8 +3,10 @@
 The book renders the outputs committed with the notebooks (``execute_notebooks: "off"`` in
 ``_config.yml``) and never executes them itself; this command produces them. Each executed
 notebook carries a record of its run in ``metadata["danae"]["execution"]`` (:func:`stamp`), so
-that a test, and this command, can tell when its code changed afterwards (:func:`stale_reason`).
-See :func:`execute_book` for its safety rule and :func:`main` for its flags.
+that a test, and this command, can tell when its code changed afterwards (:func:`stale_reason`);
+a run with ``--cold`` (every network trained, in a new empty cache) is kept a second time, in
+``metadata["danae"]["cold_execution"]`` (:func:`cold_record`), so that each chapter can state
+its cold and its warm run time. See :func:`execute_book` for its safety rule and :func:`main` for its flags.
 """
 from __future__ import annotations
 
@@ -147,19 +149,31 @@ def stale_chapters(paths: Sequence[Path], data_sha256: str | None = None) -> lis
 
 
 def chapter_records(paths: Sequence[Path]) -> list[tuple[str, dict[str, Any]]]:
-    """(chapter name, :func:`execution_record`) of each notebook in ``paths``, in order.
+    """(chapter name, :func:`execution_record`) of each notebook in ``paths``, in order; a
+    chapter that once ran cold has its :func:`cold_record` under the key ``"cold"``.
 
     Raises ValueError naming the notebook when one carries no record."""
     import nbformat
 
     records = []
     for path in paths:
-        record = execution_record(nbformat.read(path, as_version=4))
+        nb = nbformat.read(path, as_version=4)
+        record = execution_record(nb)
         if record is None:
             raise ValueError(f"{path}: no execution record (metadata.danae.execution); run "
                              "python -m danae_lite.execute first")
+        cold = cold_record(nb)
+        if cold is not None:
+            record["cold"] = cold
         records.append((Path(path).stem, record))
     return records
+
+
+def cold_record(nb: Mapping[str, Any]) -> dict[str, Any] | None:
+    """The record of the chapter's last run from an empty network cache (``--cold``), kept in
+    ``nb.metadata["danae"]["cold_execution"]`` through later warm runs; ``None`` if it never ran cold."""
+    record = (nb.get("metadata") or {}).get("danae", {}).get("cold_execution")
+    return dict(record) if isinstance(record, Mapping) else None
 
 
 def write_pages(root: Path, folder: Path) -> None:
@@ -269,7 +283,7 @@ def _write_atomically(nb: Any, target: Path) -> None:
 
 def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLike[str],
                      env: Mapping[str, str], data_dir: Path | None, fast: bool, timeout: float | None,
-                     networks: Path | None = None, data_sha256: str = "") -> dict[str, Any]:
+                     networks: Path | None = None, data_sha256: str = "", cold: bool = False) -> dict[str, Any]:
     """Execute one notebook in a fresh ``python3`` kernel and write it, with its record, to ``out_path``.
 
     The kernel runs in the notebook's own folder (as Jupyter Book runs it) with exactly the
@@ -294,6 +308,9 @@ def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLik
         The network cache folder of this mode (``<cache>/full`` or ``/fast``), whose files
         tell the networks the chapter trained and loaded (:func:`_network_counts`); None: not
         counted.
+    cold
+        The run started from an empty cache (``--cold``): its record is kept a second time,
+        as the chapter's :func:`cold_record`, which later warm runs leave in place.
 
     Returns
     -------
@@ -340,6 +357,8 @@ def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLik
     seconds = time.perf_counter() - start
     counts = _network_counts(before, _network_files(networks), started) if networks is not None else None
     record = stamp(nb, seconds=seconds, data_dir=data_dir, fast=fast, networks=counts, data_sha256=data_sha256)
+    if cold:
+        nb.metadata["danae"]["cold_execution"] = dict(record)
     _write_atomically(nb, out_path)
     return record
 
@@ -389,7 +408,7 @@ def _one_line(row: Mapping[str, Any]) -> str:
 def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str | os.PathLike[str] | None,
                  cache_dir: str | os.PathLike[str] | None, fast: bool, jobs: int = 1, cache_gb: float = DEFAULT_CACHE_GB,
                  out_dir: str | os.PathLike[str] | None = None, timeout: float | None = 3600,
-                 progress: bool = True) -> pd.DataFrame:
+                 progress: bool = True, cold: bool = False) -> pd.DataFrame:
     """Execute chapters one after the other and write them with their outputs.
 
     The committed notebooks hold a full-mode run on real data. They are therefore rewritten
@@ -418,6 +437,9 @@ def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str |
         Limit for each cell [s]; ``None`` for no limit.
     progress
         Show a progress bar and print each chapter's time as it finishes.
+    cold
+        ``cache_dir`` was empty when the first chapter started: each chapter's record is kept
+        as its cold record too (:func:`cold_record`).
 
     Returns
     -------
@@ -458,7 +480,7 @@ def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str |
         bar.set_postfix_str(path.stem)
         target = out / path.name if out is not None else path
         record = execute_notebook(path, out_path=target, env=env, data_dir=data, fast=fast, timeout=timeout,
-                                  networks=networks, data_sha256=fingerprint)
+                                  networks=networks, data_sha256=fingerprint, cold=cold)
         rows.append(_row(path, target, record, data=data, fast=fast))
         if progress:
             bar.write(_one_line(rows[-1]))
@@ -625,7 +647,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             execute_book(paths, data_dir=settings.data_dir,
                          cache_dir=Path(cold) if args.cold else settings.cache_root, cache_gb=settings.cache_gb,
                          fast=settings.fast, jobs=settings.jobs, out_dir=args.out,
-                         timeout=args.timeout if args.timeout > 0 else None)
+                         timeout=args.timeout if args.timeout > 0 else None, cold=args.cold)
         if args.out is None:
             try:
                 write_pages(root, folder)

@@ -126,33 +126,61 @@ def _networks(record: Mapping[str, Any]) -> str:
     return f"{trained} trained, {cached} found in the cache"
 
 
+def _when(record: Mapping[str, Any]) -> str:
+    return str(record["executed"]).replace("T", " ").removesuffix("+00:00")
+
+
+def _total(seconds: float) -> str:
+    minutes, rest = divmod(seconds, 60.0)
+    return f"**{seconds:,.1f}** ({minutes:.0f} min {rest:.0f} s)"
+
+
 def times_markdown(records: Sequence[tuple[str, Mapping[str, Any]]]) -> str:
-    """A Markdown table of the stored run of each chapter and their total.
+    """A Markdown table of the stored run of each chapter and of its last run from an empty
+    cache (its cold record, where it has one), with their totals.
 
     ``records`` holds (chapter name, execution record) pairs in the book's order (see
     :func:`danae_lite.execute.chapter_records`)."""
-    lines = ["| chapter | wall time [s] | networks | executed (UTC) |", "|---|---:|---|---|"]
-    total = 0.0
+    lines = ["| chapter | stored run [s] | networks | executed (UTC) | from an empty cache [s] | "
+             "networks | executed (UTC) |", "|---|---:|---|---|---:|---|---|"]
+    total = cold_total = 0.0
     for chapter, record in records:
         total += float(record["seconds"])
-        when = record["executed"].replace("T", " ").removesuffix("+00:00")
-        lines.append(f"| {chapter} | {record['seconds']:,.1f} | {_networks(record)} | {when} |")
-    minutes, seconds = divmod(total, 60.0)
-    lines.append(f"| **all chapters** | **{total:,.1f}** ({minutes:.0f} min {seconds:.0f} s) | | |")
+        cold = record.get("cold")
+        if cold is None:
+            cold_cells = "— | |"
+        else:
+            cold_total += float(cold["seconds"])
+            cold_cells = f"{cold['seconds']:,.1f} | {_networks(cold)} | {_when(cold)}"
+        lines.append(f"| {chapter} | {record['seconds']:,.1f} | {_networks(record)} | {_when(record)} | "
+                     f"{cold_cells} |")
+    every_cold = all(r.get("cold") is not None for _, r in records)
+    lines.append(f"| **all chapters** | {_total(total)} | | | {_total(cold_total) if every_cold else '—'} | | |")
     return "\n".join(lines)
 
 
 def run_time_markdown(record: Mapping[str, Any]) -> str:
-    """One sentence on a chapter's stored run: its wall time and networks (its execution record)."""
+    """One sentence on a chapter's stored run, its wall time and networks (its execution
+    record), and on its last run from an empty cache where it has a cold record (``"cold"``)."""
     seconds = f"{record['seconds']:,.1f} s"
     trained, cached = record.get("networks_trained"), record.get("networks_cached")
     where = "on the reference machine (2 CPU cores, no GPU)"
+    cold = record.get("cold")
+    if cold is not None:
+        nets = cold.get("networks_trained") or 0
+        what = f", training {nets} networks" if nets else ""
+        day = str(cold["executed"])[:10]
+        after = (f"; from an empty cache, in the last run of the whole book from scratch ({day}), it took "
+                 f"{cold['seconds']:,.1f} s{what} (see [Performance](../book/performance.md))")
+    elif trained is None or cached is None or trained + cached == 0:
+        after = ""
+    else:
+        after = ("; from an empty cache it trains them all and takes longer (see "
+                 "[Performance](../book/performance.md))")
     if trained is None or cached is None or trained + cached == 0:
-        return f"*Run time*: the stored run of this chapter took {seconds} {where}."
+        return f"*Run time*: the stored run of this chapter took {seconds} {where}{after}."
     return (f"*Run time*: the stored run of this chapter took {seconds} {where}, with "
-            f"{cached} of its {trained + cached} trained networks found in the cache; from an "
-            "empty cache it trains them all and takes longer (see "
-            "[Performance](../book/performance.md)).")
+            f"{cached} of its {trained + cached} trained networks found in the cache{after}.")
 
 
 def glued_values(nb: Mapping[str, Any]) -> dict[str, Any]:

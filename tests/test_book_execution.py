@@ -291,10 +291,19 @@ def test_a_run_counts_the_networks_it_trained_and_loaded(tmp_path):
         " cache=cfg.cache)",
     )
     cache = tmp_path / "cache"
-    first = execute_book([src], data_dir=None, cache_dir=cache, fast=True, out_dir=tmp_path / "a", progress=False)
-    again = execute_book([src], data_dir=None, cache_dir=cache, fast=True, out_dir=tmp_path / "b", progress=False)
+    first = execute_book([src], data_dir=None, cache_dir=cache, fast=True, out_dir=tmp_path / "a", progress=False,
+                         cold=True)
+    again = execute_book([tmp_path / "a" / "nets.ipynb"], data_dir=None, cache_dir=cache, fast=True,
+                         out_dir=tmp_path / "b", progress=False)
     assert first[["networks_trained", "networks_cached"]].values.tolist() == [[2, 0]]  # cold
     assert again[["networks_trained", "networks_cached"]].values.tolist() == [[0, 2]]  # warm
     assert len(list((cache / "fast").glob("*.pt"))) == 2 and not (cache / "full").exists()
-    record = execution_record(nbformat.read(tmp_path / "b" / "nets.ipynb", as_version=4))
+    warm_nb = nbformat.read(tmp_path / "b" / "nets.ipynb", as_version=4)
+    record = execution_record(warm_nb)
     assert (record["networks_trained"], record["networks_cached"]) == (0, 2)
+    # the cold run's record is kept beside the warm one: the chapter can state both
+    cold = execute.cold_record(warm_nb)
+    assert cold == execution_record(nbformat.read(tmp_path / "a" / "nets.ipynb", as_version=4))
+    assert (cold["networks_trained"], cold["networks_cached"]) == (2, 0)
+    (_, listed), = execute.chapter_records([tmp_path / "b" / "nets.ipynb"])
+    assert listed["cold"] == cold and listed["seconds"] == record["seconds"]

@@ -61,9 +61,9 @@ def test_update_block_writes_once_and_the_times_add_up(tmp_path):
     text = page.read_text()
     assert text.startswith("# P\n\nbefore\n\n") and text.endswith("\n\nafter\n")
     rows = pages.block(page, "chapter-times").splitlines()
-    assert rows[2] == "| 01_a | 8.2 | none | 2026-11-27 14:00:00 |"   # 8.25: round half to even
-    assert rows[3] == "| 02_b | 70.0 | 2 trained, 4 found in the cache | 2026-11-27 14:00:00 |"
-    assert rows[4] == "| **all chapters** | **78.2** (1 min 18 s) | | |"
+    assert rows[2] == "| 01_a | 8.2 | none | 2026-11-27 14:00:00 | — | | |"   # 8.25: round half to even
+    assert rows[3] == "| 02_b | 70.0 | 2 trained, 4 found in the cache | 2026-11-27 14:00:00 | — | | |"
+    assert rows[4] == "| **all chapters** | **78.2** (1 min 18 s) | | | — | | |"
 
 
 def test_glued_values_reads_numbers_text_and_markdown(tmp_path):
@@ -110,3 +110,26 @@ def test_a_notebook_block_is_rewritten_without_touching_code_or_record(tmp_path)
         "empty cache it trains them all and takes longer (see "
         "[Performance](../book/performance.md)).")
     assert not pages.update_notebook_block(path, "run-time", pages.run_time_markdown(record))
+
+
+def test_a_cold_record_adds_the_run_from_an_empty_cache_to_the_sentence_and_the_table(tmp_path):
+    warm = _notebook(tmp_path / "01_a.ipynb", 20.0, 0, 6)
+    nb = json.loads(warm.read_text())
+    nb["metadata"]["danae"]["cold_execution"] = {"seconds": 180.0, "networks_trained": 6, "networks_cached": 0,
+                                                 "executed": "2026-11-28T00:10:00+00:00"}
+    warm.write_text(json.dumps(nb))
+    plain = _notebook(tmp_path / "02_b.ipynb", 10.0, 0, 0)
+    (_, with_cold), (_, without) = chapter_records([warm, plain])
+    assert with_cold["cold"]["seconds"] == 180.0 and "cold" not in without
+    assert pages.run_time_markdown(with_cold) == (
+        "*Run time*: the stored run of this chapter took 20.0 s on the reference machine (2 CPU cores, "
+        "no GPU), with 6 of its 6 trained networks found in the cache; from an empty cache, in the last "
+        "run of the whole book from scratch (2026-11-28), it took 180.0 s, training 6 networks (see "
+        "[Performance](../book/performance.md)).")
+    rows = pages.times_markdown([("01_a", with_cold), ("02_b", without)]).splitlines()
+    assert rows[2] == ("| 01_a | 20.0 | 0 trained, 6 found in the cache | 2026-11-27 14:00:00 | 180.0 | "
+                       "6 trained, 0 found in the cache | 2026-11-28 00:10:00 |")
+    assert rows[3] == "| 02_b | 10.0 | none | 2026-11-27 14:00:00 | — | | |"
+    assert rows[4] == "| **all chapters** | **30.0** (0 min 30 s) | | | — | | |"   # one chapter never ran cold
+    both = pages.times_markdown([("01_a", with_cold), ("02_b", {**without, "cold": with_cold["cold"]})])
+    assert both.splitlines()[-1] == "| **all chapters** | **30.0** (0 min 30 s) | | | **360.0** (6 min 0 s) | | |"
