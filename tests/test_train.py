@@ -98,6 +98,38 @@ def test_strided_validation_windows_tile_the_tail_and_score_what_they_say():
         small(val_stride=0)
 
 
+def test_training_batches_are_the_rows_of_the_cut_out_windows():
+    """Training windows are gathered by their first sample, never all cut out at once: every
+    batch must equal, bit for bit and in the same (B, C, L) layout, the rows of the stride-1
+    windows cut out of each recording (windows.windows_from_recordings), masked windows left
+    out and standardised by the network's statistics. Elementwise float32 arithmetic on the
+    same operands: equality is exact on any CPU."""
+    from danae_lite.core import train as tr
+    from danae_lite.core.model import build_model
+    from danae_lite.core.windows import windows_from_recordings
+
+    rng = np.random.default_rng(5)
+    xs = [rng.standard_normal((n, 4)) for n in (120, 75)]
+    ys = [rng.standard_normal((n, 2)) for n in (120, 75)]
+    masks = [np.ones(120, bool), np.ones(75, bool)]
+    masks[0][40:44] = False
+    cfg = TrainConfig(window=20, normalize="standard", val_fraction=0.2)
+    blocks = tr._split_blocks(xs, ys, masks, cfg.window, cfg.val_fraction)
+    net = build_model("paper", in_channels=4, out_channels=2)
+    net.set_normalization(rng.normal(size=4), rng.uniform(0.5, 2, 4), rng.normal(size=2), rng.uniform(0.5, 2, 2))
+    data = tr._cut_windows(blocks, net, cfg.window, "cpu")
+    keep = blocks.keep_train.numpy()
+    cut_x = windows_from_recordings(blocks.x_train, cfg.window)[keep].transpose(0, 2, 1)
+    cut_y = windows_from_recordings(blocks.y_train, cfg.window)[keep].transpose(0, 2, 1)
+    ref_x = (torch.from_numpy(np.ascontiguousarray(cut_x)) - net.in_mean) / net.in_std
+    ref_y = (torch.from_numpy(np.ascontiguousarray(cut_y)) - net.out_mean) / net.out_std
+    assert data.n_train == len(ref_x) == keep.sum() < sum(len(x) - cfg.window + 1 for x in blocks.x_train)
+    idx = torch.randperm(data.n_train, generator=torch.Generator().manual_seed(0))[:37]
+    bx, by = data.batch(idx)
+    assert bx.is_contiguous() and bx.shape == (37, 4, cfg.window) and by.shape == (37, 2, cfg.window)
+    assert torch.equal(bx, ref_x[idx]) and torch.equal(by, ref_y[idx])
+
+
 def test_predict_shapes_and_stitching(trained):
     x, _ = recording(613, 0.0, seed=5)
     over = predict(trained, x)

@@ -313,17 +313,25 @@ def _mse(net: DanaeBase, x: torch.Tensor, y: torch.Tensor, batch_size: int, star
 
 @dataclass
 class _Windows:
-    """The windows a run trains and validates on: (n, C, L) float32 tensors on its device."""
+    """The windows a run trains and validates on. Training windows are not cut out: each batch
+    gathers its windows from the standardised samples by their first sample (:meth:`batch`),
+    so memory holds the samples once, not every window of ``L`` samples; validation windows,
+    far fewer, are cut out as (n, C, L) float32 tensors."""
 
     x_train: torch.Tensor
-    """Training inputs, standardised by the network's input statistics."""
+    """Training inputs of every training head, concatenated, (N, C_in), standardised by the
+    network's input statistics."""
     y_train: torch.Tensor
-    """Training targets, standardised: the loss is optimised in these units (rad when
-    ``normalize="none"``)."""
+    """Training targets, (N, C_out), standardised: the loss is optimised in these units (rad
+    when ``normalize="none"``)."""
+    starts: torch.Tensor
+    """First sample (a row of ``x_train``) of each training window, in :func:`_to_windows`
+    order, masked windows left out."""
     x_val: torch.Tensor | None
     """Validation inputs in raw units (rad); None when there is no validation window."""
     y_val: torch.Tensor | None
     """Validation targets in raw units (rad)."""
+    window: int = 20
 
     @property
     def has_val(self) -> bool:
@@ -331,11 +339,18 @@ class _Windows:
 
     @property
     def n_train(self) -> int:
-        return len(self.x_train)
+        return len(self.starts)
 
     @property
     def n_val(self) -> int:
         return len(self.x_val) if self.x_val is not None else 0
+
+    def batch(self, idx: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Training windows ``idx`` as contiguous (B, C_in, L) inputs and (B, C_out, L) targets:
+        the same values, in the same layout, as rows of the cut-out windows."""
+        rows = self.starts[idx, None] + torch.arange(self.window, device=self.starts.device)
+        return (self.x_train[rows].transpose(1, 2).contiguous(),
+                self.y_train[rows].transpose(1, 2).contiguous())
 
     def val_loss(self, net: DanaeBase, cfg: TrainConfig) -> float:
         """The network's validation MSE (rad^2) from window position ``cfg.loss_start`` on; NaN without validation."""
@@ -344,15 +359,24 @@ class _Windows:
         return _mse(net, self.x_val, self.y_val, cfg.eval_batch_size, cfg.loss_start)
 
 
+def _window_starts(recs: list[np.ndarray], window: int) -> np.ndarray:
+    """First sample of every stride-1 window of each recording, as rows of the recordings
+    concatenated (in :func:`_to_windows` order)."""
+    offsets = np.cumsum([0] + [len(r) for r in recs[:-1]])
+    return np.concatenate([o + np.arange(len(r) - window + 1) for o, r in zip(offsets, recs)])
+
+
 def _cut_windows(blocks: _Blocks, net: DanaeBase, window: int, device: str, val_stride: int = 1) -> _Windows:
-    """Stride-1 windows of the training heads (standardised) and windows ``val_stride`` apart
-    of the validation tails, masked windows left out."""
-    x_tr, y_tr = _to_windows(blocks.x_train, window, device), _to_windows(blocks.y_train, window, device)
+    """Stride-1 windows of the training heads (standardised; as starts into their samples) and
+    windows ``val_stride`` apart of the validation tails, masked windows left out."""
+    starts = torch.from_numpy(_window_starts(blocks.x_train, window)).to(device)
     if blocks.keep_train is not None:
-        x_tr, y_tr = x_tr[blocks.keep_train.to(device)], y_tr[blocks.keep_train.to(device)]
+        starts = starts[blocks.keep_train.to(device)]
     # the optimised loss lives in standardised units (identical to rad when normalize="none")
-    x_tr_n = (x_tr - net.in_mean) / net.in_std
-    y_tr_n = (y_tr - net.out_mean) / net.out_std
+    x_tr = torch.from_numpy(np.concatenate(blocks.x_train)).to(device)
+    y_tr = torch.from_numpy(np.concatenate(blocks.y_train)).to(device)
+    x_tr_n = (x_tr - net.in_mean.reshape(-1)) / net.in_std.reshape(-1)
+    y_tr_n = (y_tr - net.out_mean.reshape(-1)) / net.out_std.reshape(-1)
     x_va = y_va = None
     if blocks.x_val:
         x_va = _to_windows(blocks.x_val, window, device, val_stride)
@@ -361,7 +385,7 @@ def _cut_windows(blocks: _Blocks, net: DanaeBase, window: int, device: str, val_
             x_va, y_va = x_va[blocks.keep_val.to(device)], y_va[blocks.keep_val.to(device)]
         if len(x_va) == 0:  # every validation window holds a masked target
             x_va = y_va = None
-    return _Windows(x_tr_n, y_tr_n, x_va, y_va)
+    return _Windows(x_tr_n, y_tr_n, starts, x_va, y_va, window)
 
 
 # ---------------------------------------------------------------------------------------
@@ -492,7 +516,7 @@ def _fit(net: DanaeBase, data: _Windows, cfg: TrainConfig, schedule: _Schedule, 
     step, stopped_early = 0, False
     net.train()
     for idx in _batches(data.n_train, cfg.batch_size, cfg.epochs, cfg.seed, device):
-        running.add(_optimisation_step(net, opt, data.x_train[idx], data.y_train[idx], cfg))
+        running.add(_optimisation_step(net, opt, *data.batch(idx), cfg))
         step += 1
         bar.update(1)
         if step % 20 == 0 or step == schedule.total_steps:
