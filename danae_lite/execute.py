@@ -546,6 +546,7 @@ safety rule:
 examples:
   DANAE_DATA=/path/to/data python -m danae_lite.execute                 # the stale chapters, in place
   DANAE_DATA=/path/to/data python -m danae_lite.execute --all --cold    # every chapter, every network trained
+  ... --all --cold --cache NEW_DIR      # the same, in a new cache kept for later warm runs
   python -m danae_lite.execute --data-dir /path/to/data --only 03_danae  # one chapter, in place
   python -m danae_lite.execute --fast --out _build/fast_notebooks        # simulator, fast, copies
 """
@@ -566,6 +567,19 @@ def _stale_or_say_so(paths: Sequence[Path], data_sha256: str) -> list[Path]:
     return stale
 
 
+def _cold_cache(requested: str | None, temporary: Path) -> Path:
+    """Cache root of a ``--cold`` run: the ``--cache`` folder ``requested`` (kept afterwards),
+    which must be empty or absent, else ``temporary`` (removed afterwards)."""
+    if requested is None or requested == "off":
+        return temporary
+    folder = Path(requested).expanduser().resolve()
+    if folder.exists() and (not folder.is_dir() or any(folder.iterdir())):
+        raise BookExecutionError(f"--cold --cache {folder}: a cold run needs an empty or absent "
+                                 "folder; choose a new one or leave --cache out (a temporary cache)")
+    folder.mkdir(parents=True, exist_ok=True)
+    return folder
+
+
 def _parser() -> argparse.ArgumentParser:
     """The command line of :func:`main`."""
     parser = argparse.ArgumentParser(
@@ -581,7 +595,8 @@ def _parser() -> argparse.ArgumentParser:
                              f"default ${CACHE_ENV}, else the user's cache folder (~/.cache/danae_lite)")
     parser.add_argument("--cold", action="store_true",
                         help="run cold: train every network, in a new empty cache that the chapters of this "
-                             "run share and that is removed afterwards (the user's cache is left as it is)")
+                             "run share and that is removed afterwards (the user's cache is left as it is); "
+                             "with --cache DIR, in DIR, which must be empty or absent and is kept for warm runs")
     parser.add_argument("--fast", action=argparse.BooleanOptionalAction, default=None,
                         help=f"fast mode (fewer epochs, shorter recordings); default ${FAST_ENV}")
     parser.add_argument("--out", metavar="DIR", default=None,
@@ -643,9 +658,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             paths = _stale_or_say_so(paths, data_fingerprint(settings.data_dir))
             if not paths:
                 return 0
-        with tempfile.TemporaryDirectory(prefix="danae_cold_cache_") as cold:
-            execute_book(paths, data_dir=settings.data_dir,
-                         cache_dir=Path(cold) if args.cold else settings.cache_root, cache_gb=settings.cache_gb,
+        with tempfile.TemporaryDirectory(prefix="danae_cold_cache_") as tmp:
+            cache = _cold_cache(args.cache, Path(tmp)) if args.cold else settings.cache_root
+            execute_book(paths, data_dir=settings.data_dir, cache_dir=cache, cache_gb=settings.cache_gb,
                          fast=settings.fast, jobs=settings.jobs, out_dir=args.out,
                          timeout=args.timeout if args.timeout > 0 else None, cold=args.cold)
         if args.out is None:

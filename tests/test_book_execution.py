@@ -274,6 +274,27 @@ def test_cold_runs_in_a_new_cache_that_is_removed_afterwards(tmp_path, monkeypat
     assert len(seen) == 1 and seen[0] != tmp_path / "warm" and not seen[0].exists()
 
 
+def test_cold_with_a_cache_folder_trains_there_and_keeps_it(tmp_path, monkeypatch, capsys):
+    root = _book_root(tmp_path, fresh=False)
+    (tmp_path / "data").mkdir()
+    monkeypatch.chdir(root)
+    monkeypatch.setenv("DANAE_DATA", str(tmp_path / "data"))
+    seen: list[Path] = []
+
+    def fake(paths, *, cache_dir, cold, **kw):
+        seen.append(Path(cache_dir))
+        assert cold and not any(Path(cache_dir).iterdir())
+        (Path(cache_dir) / "net.pt").write_bytes(b"x")
+
+    monkeypatch.setattr(execute, "execute_book", fake)
+    kept = tmp_path / "new" / "cache"
+    assert main(["--cold", "--cache", str(kept)]) == 0
+    assert seen == [kept] and (kept / "net.pt").exists()     # kept for later warm runs
+    # a second cold run into the same, now full, folder is refused before anything runs
+    assert main(["--cold", "--cache", str(kept)]) == 2 and len(seen) == 1
+    assert f"--cold --cache {kept}: a cold run needs an empty or absent folder" in capsys.readouterr().err
+
+
 def test_network_counts_tell_trained_from_loaded_files():
     before = {"a.pt": 10.0, "b.pt": 10.0, "c.pt": 10.0}
     after = {"a.pt": 10.0, "b.pt": 25.0, "c.pt": 30.0, "d.pt": 31.0, "e.pt": 32.0}   # b, c loaded; d, e new
