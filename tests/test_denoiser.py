@@ -29,7 +29,7 @@ def test_level_offsets_are_bounded_slow_and_seeded():
     np.testing.assert_array_equal(a, b)
     assert np.abs(a).max() <= 0.3 + 1e-12 and np.abs(a).max() > 0.05
     # the fastest sinusoid (20 s) of amplitude 0.1 changes by at most 2 pi 0.1 / 20 rad/s:
-    # over a 64-sample window at 100 Hz, 3 x 0.02 rad at most
+    # over the causal network's 31-sample receptive field at 100 Hz, 3 x 0.01 rad at most
     step = np.abs(np.diff(a, axis=0)).max()
     assert step <= 3 * 2 * np.pi * 0.1 / 20 / 100 + 1e-12
 
@@ -83,7 +83,7 @@ def test_gate_is_chosen_on_training_recordings_the_scoring_network_never_saw(boa
     assert m.params["gate_folds"] == [[n] for n in train]  # two recordings: each held out once
     # the gate's networks are trained with the first seed only; its gains serve every seed
     assert set(m.gate_results) == {(0, 0), (1, 0)}
-    assert m.results[1].config.val_stride == 64 - 30  # the research budget (features.research_config)
+    assert m.results[1].config.val_stride == 128 - 30  # the research budget (features.research_config)
     np.testing.assert_array_equal(m.gains[1], m.gains[0])
     assert m.params["gate_rmse_rad"][1] == m.params["gate_rmse_rad"][0]
     for seed in (0,):

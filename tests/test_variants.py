@@ -101,22 +101,27 @@ def test_selected_variant_is_chosen_on_validation_blocks_only():
 
 
 def test_research_budget_caps_steps_and_tiles_validation():
-    """Chapters 8-9's networks validate on windows window - loss_start apart; DANAE-res's
-    (capped) take at most RESEARCH_MAX_STEPS steps (a smaller cap, fast mode's, wins) with a
-    check every RESEARCH_VAL_EVERY steps; the variants keep the context's epoch."""
+    """Chapters 8-10's networks validate on windows window - loss_start apart; DANAE-res's
+    (capped) score at most RESEARCH_SCORED_SAMPLES window samples, batch x (window -
+    loss_start) per step (a smaller step cap, fast mode's, wins), with RESEARCH_CHECKS checks;
+    the variants keep the context's epoch. The step counts are worked out by hand."""
     from danae_lite.research.denoiser import DanaeRes
-    from danae_lite.research.features import (CAUSAL_SETTINGS, RESEARCH_MAX_STEPS, RESEARCH_VAL_EVERY,
-                                              research_config)
+    from danae_lite.research.features import (CAUSAL_SETTINGS, RES_SETTINGS, RESEARCH_CHECKS,
+                                              RESEARCH_SCORED_SAMPLES, research_config)
 
+    assert (RESEARCH_SCORED_SAMPLES, RESEARCH_CHECKS) == (1500 * 16 * 34, 5)
+    # paper network: 20 scored positions per window, 816,000 / (16 * 20) = 2550 steps
     capped = research_config(TrainConfig(epochs=1), 2, capped=True, normalize="standard")
-    assert (capped.max_steps, capped.val_every, capped.val_stride, capped.seed) == (
-        RESEARCH_MAX_STEPS, RESEARCH_VAL_EVERY, 20, 2)
+    assert (capped.max_steps, capped.val_every, capped.val_stride, capped.seed) == (2550, 510, 20, 2)
     causal = research_config(TrainConfig(), 0, capped=True, **CAUSAL_SETTINGS)
-    assert causal.val_stride == 64 - 30 and causal.window == 64
+    assert (causal.max_steps, causal.val_every, causal.val_stride, causal.window) == (1500, 300, 34, 64)
+    # DANAE-res: 98 scored positions, 816,000 / (16 * 98) = 520.4 -> 520 steps, ceil(520 / 5) = 104
+    res = research_config(TrainConfig(), 0, capped=True, **RES_SETTINGS)
+    assert (res.max_steps, res.val_every, res.val_stride, res.window) == (520, 104, 98, 128)
     fast = research_config(TrainConfig(max_steps=40), 0, capped=True)
     assert (fast.max_steps, fast.val_every) == (40, 40)
     free = research_config(TrainConfig(epochs=1), 0, capped=False)
     assert (free.max_steps, free.val_every, free.val_stride) == (None, None, 20)
-    for method, steps in ((DanaeOn("vqf"), None), (DanaeRes("vqf"), RESEARCH_MAX_STEPS)):
+    for method, steps in ((DanaeOn("vqf"), None), (DanaeRes("vqf"), 520)):
         method.ctx = type("Ctx", (), {"train_config": TrainConfig(epochs=1)})()
         assert method.config(0).max_steps == steps

@@ -17,14 +17,15 @@ networks or the training loop (:func:`danae_lite.core.networks.train_networks`):
   three sinusoids of random phase with periods of 20-60 s, each of amplitude
   ``offset_rad / 3``) is added to every angle-like input channel of a rotation axis (the
   filter's roll and the accelerometer's roll, and so on; headings are rotated as sin/cos
-  pairs). Inside a window it is nearly constant, so the network cannot read the correction
+  pairs). Within what the network sees of its input (the causal network: 31 samples) it is
+  nearly constant, so the network cannot read the correction
   off the absolute angle. The target (an error) does not change.
 * **Inputs.** ``inputs="multi"``: the 11 channels of :data:`danae_lite.research.features.MULTI_CHANNELS`
   (filter angles, accelerometer tilt, magnetic heading, Euler rates); ``"angles"``: the
   filter's angles only.
-* **Architecture.** ``arch="causal"`` (default, :data:`danae_lite.research.features.CAUSAL_SETTINGS`:
-  :class:`~danae_lite.core.model.DanaeCausal`, 64 channels, 64-sample windows, loss on positions
-  30-63): on a causal filter it runs on-line
+* **Architecture.** ``arch="causal"`` (default, :data:`danae_lite.research.features.RES_SETTINGS`:
+  :class:`~danae_lite.core.model.DanaeCausal`, 64 channels, 128-sample windows, loss on positions
+  30-127): on a causal filter it runs on-line
   (:class:`DenoiserStream`). ``arch="paper"`` looks ahead.
 * **Gate chosen across recordings** (``gate=True``): per angle, the gain ``g`` in
   :data:`GATE_GAINS` with the lowest RMSE on training recordings the scoring network has not
@@ -55,7 +56,7 @@ from numpy.typing import NDArray
 
 from ..core.angles import wrap
 from .baselines import make_method
-from .features import (ANGLE_CHANNELS, CAUSAL_SETTINGS, MULTI_CHANNELS, multi_input, research_config,
+from .features import (ANGLE_CHANNELS, MULTI_CHANNELS, RES_SETTINGS, multi_input, research_config,
                        run_network, to_circle)
 from .methods import Context, Method
 from ..core.networks import NetworkJob, network_jobs, train_networks
@@ -135,7 +136,7 @@ class DanaeRes(Method):
     gate_folds : inner folds of the training recordings for the gate (at most this many).
     name : leaderboard name; default ``"danae-res[<source>]"``.
     **train_overrides : :class:`~danae_lite.core.train.TrainConfig` fields replacing
-        :data:`~danae_lite.research.features.CAUSAL_SETTINGS` and the context's settings (e.g. ``arch="paper", window=20``).
+        :data:`~danae_lite.research.features.RES_SETTINGS` and the context's settings (e.g. ``arch="paper", window=20``).
 
     Attributes (after ``fit``)
     --------------------------
@@ -162,7 +163,7 @@ class DanaeRes(Method):
         if int(gate_folds) != gate_folds or gate_folds < 2:
             raise ValueError(f"gate_folds must be an integer >= 2, got {gate_folds!r}")
         self.offset_rad, self.gate, self.gate_folds = float(offset_rad), bool(gate), int(gate_folds)
-        self.overrides = {**CAUSAL_SETTINGS, **train_overrides}
+        self.overrides = {**RES_SETTINGS, **train_overrides}
         self.name = name or f"danae-res[{source}]"
         self.causal = self.overrides["arch"] == "causal" and make_method(source).causal
         self.description = (f"DANAE-res: a learned correction of {source}'s output "
