@@ -43,6 +43,7 @@ chapter setup, execution and the command line sit at the top.
 * :mod:`~danae_lite.research.features`     input channels and causal network shared by the learned methods
 * :mod:`~danae_lite.research.variants`     DANAE behind any filter, multi-input, causal, ablations
 * :mod:`~danae_lite.research.denoiser`     the recommended learned denoiser (DANAE-res)
+* :mod:`~danae_lite.research.fallback`     DANAE-res with a per-sample fallback and a calibrated error bar
 * :mod:`~danae_lite.research.streaming`    causal networks one sample at a time
 * :mod:`~danae_lite.research.registry`     leaderboard names -> methods
 * :mod:`~danae_lite.research.broad_benchmark`  the BROAD metric, its reference filters, the published figures

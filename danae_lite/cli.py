@@ -189,25 +189,31 @@ def build_parser() -> argparse.ArgumentParser:
     _add_common(lb, "leaderboard")
     lb.add_argument("--methods", metavar="NAME", nargs="+", default=None, type=_method_name,
                     help="methods to run (default: all): " + " ".join(_method_names())
-                    + "; and danae-res[FILTER], the recommended denoiser on FILTER's output (e.g. danae-res[vqf])")
+                    + "; danae-res[FILTER], the recommended denoiser on FILTER's output (e.g. danae-res[vqf]); "
+                    "danae-safe[FILTER], DANAE-res with a per-sample fallback and an error bar")
+    lb.add_argument("--estimates", action="store_true",
+                    help="also write estimates_<method>.csv per method: its roll, pitch, yaw [rad] per test "
+                         "recording, seed and sample and, for danae-safe[FILTER], the half-widths of its 68 %% "
+                         "(<angle>_sd_rad) and 95 %% (<angle>_hw95_rad) intervals. Not with --folds. Default: off")
     lb.add_argument("--folds", action="store_true",
                     help="cross-validate instead of one split: oxiod -> leave one recording out within each "
                          "motion found (handheld, trolley, multi users) and handheld -> the other motions; broad -> "
                          "undisturbed -> disturbed trials, grouped by disturbance. Every method is refitted per "
                          "split; writes folds.csv (one row per held-out recording), folds_summary.csv (mean and std "
                          "over recordings), folds_params.csv, folds.json (and folds_broad.csv; no_harm.csv when a "
-                         "danae-res[FILTER] runs beside its FILTER). Not with "
+                         "danae-res[FILTER] runs beside its FILTER; coverage.csv for danae-safe[FILTER]). Not with "
                          "--train/--test or ucs")
     return parser
 
 
 def _method_name(name: str) -> str:
-    """``--methods`` value check: a leaderboard method or ``danae-res[<filter>]``."""
+    """``--methods`` value check: a leaderboard method, ``danae-res[<filter>]`` or ``danae-safe[<filter>]``."""
     from .research.baselines import is_method_name
 
     if not is_method_name(name):
         raise argparse.ArgumentTypeError(
-            f"invalid choice: {name!r} (choose from {', '.join(_method_names())} or danae-res[<filter>])")
+            f"invalid choice: {name!r} (choose from {', '.join(_method_names())}, danae-res[<filter>] "
+            "or danae-safe[<filter>])")
     return name
 
 
@@ -411,6 +417,8 @@ def leaderboard(args: argparse.Namespace) -> int:
     board = run_leaderboard(exp, methods=methods, seeds=seeds, train_config=config, progress=sys.stdout.isatty(),
                             cache=settings.cache, jobs=settings.jobs)
     written = board.write(out_dir)
+    if args.estimates:
+        written.update(board.write_estimates(out_dir, list(board.methods)))
     with pd.option_context("display.float_format", "{:.4f}".format, "display.width", 140):
         for subset in ("all", "clean"):
             print(f"\nRMSE [rad] on {subset} test samples (errors wrapped; DANAE: mean over seeds):")
@@ -439,6 +447,8 @@ def folds(args: argparse.Namespace) -> int:
 
     if args.experiment == "ucs":
         raise UsageError("--folds: ucs is one recording, there is nothing to hold out; use oxiod or broad")
+    if args.estimates:
+        raise UsageError("--estimates writes one split's per-sample output; leave it out with --folds")
     if args.train is not None or args.test is not None or args.split != "default":
         raise UsageError("--folds chooses the training and test recordings itself; leave out --train/--test/--split")
     settings, out_dir, _, config = _prepare(args)

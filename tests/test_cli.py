@@ -271,6 +271,23 @@ def test_folds_usage_errors(tmp_path: Path, capsys: pytest.CaptureFixture[str]) 
     assert code == 2 and "nothing to hold out" in err
     code, _, err = run(["leaderboard", "--folds", *TINY, "--test", str(tmp_path), "--out", str(tmp_path)], capsys)
     assert code == 2 and "--train/--test" in err
+    code, _, err = run(["leaderboard", "--folds", "--estimates", *TINY, "--out", str(tmp_path)], capsys)
+    assert code == 2 and "--estimates" in err
+
+
+def test_folds_write_the_coverage_of_the_error_bars(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """danae-safe[FILTER] on the BROAD protocol: coverage.csv holds one row per held-out trial and
+    angle the filter estimates (RIANN: no yaw), fractions in [0, 1], the 95 % interval covering
+    at least what the 68 % one covers."""
+    out = tmp_path / "cov"
+    code, _, err = run(["leaderboard", "--folds", "--experiment", "broad", *TINY, "--methods", "riann",
+                        "danae-safe[riann]", "--out", str(out)], capsys)
+    assert code == 0, err
+    cov = pd.read_csv(out / "coverage.csv")
+    trials = pd.read_csv(out / "folds_broad.csv")
+    assert len(cov) == 2 * trials.test.nunique() and set(cov.angle) == {"roll", "pitch"}
+    assert cov.cover68.between(0, 1).all() and (cov.cover95 >= cov.cover68).all()
+    assert set(pd.read_csv(out / "no_harm.csv").corrector) == {"danae-safe[riann]"}
 
 
 def test_paper_split_reads_the_slow_walking_files(tmp_path, capsys, monkeypatch):

@@ -41,15 +41,19 @@ METHOD_COLORS: dict[str, str] = {
     "riann": "#9467bd",
     "danae": COLORS["danae"],
     "danae-res": "#1f3b99",
+    "danae-safe": "#6b8fe0",
 }
-"""Colour of each leaderboard method (``danae_lite.research.baselines.METHODS``, plus ``danae-res``): the
+"""Colour of each leaderboard method (``danae_lite.research.baselines.METHODS``, plus ``danae-res`` and
+``danae-safe``): the
 paper's KF and DANAE keep the colours of the authors' figure; no method uses an angle's colour."""
 
 
 def method_color(name: str) -> str:
-    """Colour of a leaderboard method; variants such as ``danae-res[vqf]`` or ``danae[vqf]``
-    take their family's colour."""
+    """Colour of a leaderboard method; variants such as ``danae-res[vqf]``, ``danae[vqf]`` or
+    ``danae-safe-gate[vqf]`` take their family's colour."""
     base = name.split("[", 1)[0]
+    if base not in METHOD_COLORS and base.startswith("danae-safe-"):
+        base = "danae-safe"
     if base not in METHOD_COLORS:
         raise KeyError(f"no colour for method {name!r}; known: {', '.join(METHOD_COLORS)}")
     return METHOD_COLORS[base]

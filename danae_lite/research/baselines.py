@@ -499,16 +499,30 @@ def make_method(name: str) -> Method:
     raise ValueError(f"unknown method {name!r}; choose from {', '.join(METHODS)} or danae-res[<filter>]")
 
 
-def denoiser_source(name: str) -> str | None:
-    """``"danae-res[vqf]"`` -> ``"vqf"`` when the bracket holds a filter of :data:`METHODS`, else None."""
-    if name.startswith("danae-res[") and name.endswith("]"):
-        source = name[len("danae-res["):-1]
-        if source in METHODS and not source.startswith("danae"):
-            return source
+DENOISER_FAMILIES: tuple[str, ...] = ("danae-res", "danae-safe")
+"""Learned correctors a leaderboard name can put behind a filter, ``<family>[<filter>]``:
+DANAE-res (:class:`danae_lite.research.denoiser.DanaeRes`) and DANAE-res with a per-sample
+fallback and an error bar (:class:`danae_lite.research.fallback.DanaeSafe`)."""
+
+
+def denoiser_name(name: str) -> tuple[str, str] | None:
+    """``"danae-res[vqf]"`` -> ``("danae-res", "vqf")`` when the family is one of
+    :data:`DENOISER_FAMILIES` and the bracket holds a filter of :data:`METHODS`, else None."""
+    for family in DENOISER_FAMILIES:
+        if name.startswith(f"{family}[") and name.endswith("]"):
+            source = name[len(family) + 1:-1]
+            if source in METHODS and not source.startswith("danae"):
+                return family, source
     return None
 
 
+def denoiser_source(name: str) -> str | None:
+    """``"danae-res[vqf]"`` (or ``"danae-safe[vqf]"``) -> ``"vqf"``, see :func:`denoiser_name`; else None."""
+    found = denoiser_name(name)
+    return None if found is None else found[1]
+
+
 def is_method_name(name: str) -> bool:
-    """Whether :func:`danae_lite.research.registry.make_method` knows ``name``: one of :data:`METHODS` or ``danae-res[<filter>]``
-    (the recommended denoiser on that filter's output, :class:`danae_lite.research.denoiser.DanaeRes`)."""
+    """Whether :func:`danae_lite.research.registry.make_method` knows ``name``: one of :data:`METHODS`,
+    ``danae-res[<filter>]`` or ``danae-safe[<filter>]`` (:func:`denoiser_name`)."""
     return name in METHODS or denoiser_source(name) is not None

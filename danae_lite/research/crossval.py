@@ -36,10 +36,11 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
+from numpy.typing import NDArray
 
 from . import broad_benchmark
 from ..core import metrics
-from ..core.angles import ANGLES
+from ..core.angles import ANGLES, wrap
 from ..core.datasets import Experiment
 from .leaderboard import Leaderboard, network_jobs, run_leaderboard, trial_figures
 from .memo import carrying_store
@@ -57,6 +58,12 @@ recording, mean over seeds (``rmse_seed_std``: their sample std, NaN with one se
 TRIAL_COLUMNS: tuple[str, ...] = ("split", "protocol", "group", "test", "method", "causal", *broad_benchmark.METRICS, "seeds")
 """Columns of :attr:`CrossValidation.trials` (``folds_broad.csv``): the BROAD benchmark's figures [deg]."""
 
+COVERAGE_COLUMNS: tuple[str, ...] = ("split", "protocol", "group", "test", "method", "angle", "cover68", "cover95",
+                                     "sd_rmse", "n", "seeds")
+"""Columns of :attr:`CrossValidation.coverage` (``coverage.csv``): for a method with an error bar
+(``predict_bars``), on one held-out recording's clean samples, the fraction of samples whose
+error lies within the 68 % and the 95 % interval, and the root mean square of the 68 % half-width
+(the stated standard deviation) [rad]; means over seeds."""
 NO_HARM_COLUMNS: tuple[str, ...] = ("split", "protocol", "group", "test", "quantity", "filter", "corrector",
                                     "filter_value", "corrector_value", "change_pct")
 """Columns of :meth:`CrossValidation.no_harm` (``no_harm.csv``): a corrector against the filter
@@ -128,6 +135,8 @@ class CrossValidation:
     """Wall time per split and ``total`` [s]."""
     seeds: tuple[int, ...] = (0,)
     methods: list[str] = field(default_factory=list)
+    coverage: pd.DataFrame = field(default_factory=lambda: pd.DataFrame(columns=list(COVERAGE_COLUMNS)))
+    """:data:`COVERAGE_COLUMNS`, for the methods with an error bar (empty without one)."""
 
     def per_recording(self, angle: str, samples: str = "clean", protocol: str | None = None) -> pd.DataFrame:
         """RMSE [rad] per held-out recording (rows: ``(group, test)``) and method (columns)."""
@@ -260,7 +269,8 @@ class CrossValidation:
         """``folds.csv`` (every row), ``folds_summary.csv`` (:meth:`summary` per protocol and
         group, clean samples), ``folds_params.csv``, ``folds.json``, for BROAD
         ``folds_broad.csv`` and, when a method corrects another (:meth:`corrections`),
-        ``no_harm.csv`` (:meth:`no_harm`); returns the paths."""
+        ``no_harm.csv`` (:meth:`no_harm`), and ``coverage.csv`` (:attr:`coverage`) when a method
+        has an error bar; returns the paths."""
         out = Path(out_dir)
         out.mkdir(parents=True, exist_ok=True)
         paths = {"rows": out / "folds.csv", "summary": out / "folds_summary.csv", "params": out / "folds_params.csv",
@@ -276,6 +286,9 @@ class CrossValidation:
         if not self.trials.empty:
             paths["broad"] = out / "folds_broad.csv"
             self.trials.to_csv(paths["broad"], index=False, float_format="%.6g")
+        if not self.coverage.empty:
+            paths["coverage"] = out / "coverage.csv"
+            self.coverage.to_csv(paths["coverage"], index=False, float_format="%.6g")
         if self.corrections():
             paths["no_harm"] = out / "no_harm.csv"
             self.no_harm().to_csv(paths["no_harm"], index=False, float_format="%.6g")
@@ -306,11 +319,47 @@ def _recording_rows(split: Split, board: Leaderboard,
     return rows, trials
 
 
+def _coverage_rows(split: Split, board: Leaderboard) -> list[dict[str, Any]]:
+    """:data:`COVERAGE_COLUMNS` rows of the methods of ``board`` with an error bar."""
+    rows = []
+    for name, m in board.methods.items():
+        if not hasattr(m, "predict_bars"):
+            continue
+        for rec in split.test:
+            aligned = board.alignment.apply(rec)
+            ok = board.clean[rec.name]
+            per_seed = [interval_coverage(out[ok], sd[ok], hw[ok], aligned.euler[ok])
+                        for out, sd, hw in m.predict_bars(aligned)]
+            for k, angle in enumerate(ANGLES):
+                vals = np.array([c[k] for c in per_seed])
+                if np.isnan(vals).all():
+                    continue
+                rows.append({"split": split.name, "protocol": split.protocol, "group": split.groups[rec.name],
+                             "test": rec.name, "method": name, "angle": angle, "cover68": float(vals[:, 0].mean()),
+                             "cover95": float(vals[:, 1].mean()), "sd_rmse": float(vals[:, 2].mean()),
+                             "n": int(ok.sum()), "seeds": len(per_seed)})
+    return rows
+
+
+def interval_coverage(out: NDArray[np.float64], sd: NDArray[np.float64], hw95: NDArray[np.float64],
+                      truth: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(3, 3): per angle, the fraction of samples whose wrapped error ``truth - out`` [rad] lies
+    within ``sd`` and within ``hw95``, and the root mean square of ``sd`` [rad]; NaN for an angle
+    without a bar."""
+    err = np.abs(wrap(np.asarray(truth, dtype=float) - np.asarray(out, dtype=float)))
+    res = np.full((3, 3), np.nan)
+    for k in range(3):
+        if np.isfinite(sd[:, k]).all() and len(err):
+            res[k] = [np.mean(err[:, k] <= sd[:, k]), np.mean(err[:, k] <= hw95[:, k]), np.sqrt(np.mean(sd[:, k] ** 2))]
+    return res
+
+
 def _run_one(split: Split, name: str, data: str, aligned: bool, methods: Sequence[str], extra: Sequence[Method],
              seeds: Sequence[int], train_config: TrainConfig, cache: str | os.PathLike[str] | None,
-             jobs: int) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[dict[str, Any]], float]:
+             jobs: int) -> tuple[list[dict[str, Any]], list[dict[str, Any]], list[dict[str, Any]], float,
+                                 list[dict[str, Any]]]:
     """Fit and score every method on one split: its rows, BROAD trials and chosen parameters
-    (:func:`_recording_rows`) and its wall time [s]."""
+    (:func:`_recording_rows`), its wall time [s] and the coverage of its error bars."""
     t0 = time.perf_counter()
     exp = Experiment(name, data, list(split.train), list(split.test), split.name, aligned=aligned)
     board = run_leaderboard(exp, methods=methods, extra=[copy.deepcopy(m) for m in extra], seeds=seeds,
@@ -318,7 +367,7 @@ def _run_one(split: Split, name: str, data: str, aligned: bool, methods: Sequenc
     rows, trials = _recording_rows(split, board, benchmark=name == "broad")
     params = [{"split": split.name, "method": n, "params": json.dumps(plain(m.params), sort_keys=True)}
               for n, m in board.methods.items()]
-    return rows, trials, params, time.perf_counter() - t0
+    return rows, trials, params, time.perf_counter() - t0, _coverage_rows(split, board)
 
 
 def _pretrain(splits: Sequence[Split], name: str, data: str, aligned: bool, methods: Sequence[str],
@@ -391,9 +440,10 @@ def run_splits(
     seconds = {s.name: float(res[3]) for s, res in zip(splits, results)}
     seconds["total"] = time.perf_counter() - t0
     table = pd.DataFrame(rows, columns=list(ROW_COLUMNS))
+    coverage = pd.DataFrame([r for res in results for r in res[4]], columns=list(COVERAGE_COLUMNS))
     return CrossValidation(name=name, data=data, rows=table, trials=pd.DataFrame(trials, columns=list(TRIAL_COLUMNS)),
                            params=pd.DataFrame(params), seconds=seconds, seeds=common[-1],
-                           methods=list(dict.fromkeys(table.method)))
+                           methods=list(dict.fromkeys(table.method)), coverage=coverage)
 
 
 def _with_threads(cfg: TrainConfig, threads: int) -> TrainConfig:

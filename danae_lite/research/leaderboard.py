@@ -205,6 +205,37 @@ class Leaderboard:
                 paths[f"search_{name}"] = p
         return paths
 
+    def estimates(self, name: str) -> pd.DataFrame:
+        """Method ``name``'s per-sample output on every test recording, one row per recording,
+        seed and sample: ``recording, seed, sample, t_s`` (seconds from the recording's start),
+        ``roll_rad, pitch_rad, yaw_rad`` and, for a method with an error bar (``predict_bars``),
+        the half-widths of its 68 % (``<angle>_sd_rad``, its standard deviation) and 95 %
+        (``<angle>_hw95_rad``) intervals [rad]."""
+        m = self.methods[name]
+        blocks = []
+        for rec in self.experiment.test:
+            per_seed = (m.predict_bars(self.alignment.apply(rec)) if hasattr(m, "predict_bars")
+                        else [(p, None, None) for p in self.predictions[name][rec.name]])
+            for seed, (out, sd, hw) in zip(self.seeds, per_seed):
+                cols: dict[str, Any] = {"recording": rec.name, "seed": int(seed), "sample": np.arange(len(out)),
+                                        "t_s": np.arange(len(out)) / rec.fs}
+                for k, a in enumerate(ANGLES):
+                    cols[f"{a}_rad"] = out[:, k]
+                for k, a in enumerate(ANGLES if sd is not None else ()):
+                    cols[f"{a}_sd_rad"], cols[f"{a}_hw95_rad"] = sd[:, k], hw[:, k]
+                blocks.append(pd.DataFrame(cols))
+        return pd.concat(blocks, ignore_index=True)
+
+    def write_estimates(self, out_dir: str | os.PathLike[str], names: Sequence[str]) -> dict[str, Path]:
+        """``estimates_<method>.csv`` (:meth:`estimates`) per method of ``names``; returns the paths."""
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        paths = {}
+        for name in names:
+            paths[f"estimates_{name}"] = p = out / f"estimates_{name}.csv"
+            self.estimates(name).to_csv(p, index=False, float_format="%.7g")
+        return paths
+
 
 def trial_figures(rec: Recording, per_seed: Sequence[NDArray[np.float64]]
                   ) -> tuple[dict[str, tuple[float, float]], int]:
@@ -267,7 +298,7 @@ def run_leaderboard(
     Parameters
     ----------
     exp : the recordings (:func:`danae_lite.core.datasets.load_experiment` or the CLI's selection).
-    methods : names from :data:`danae_lite.research.baselines.METHODS`, or ``danae-res[<filter>]``
+    methods : names from :data:`danae_lite.research.baselines.METHODS`, ``danae-res[<filter>]`` or ``danae-safe[<filter>]``
         (:class:`danae_lite.research.denoiser.DanaeRes` on that filter).
     seeds : DANAE training seeds (one network per angle and seed).
     train_config : DANAE settings; default the paper's (:class:`~danae_lite.core.train.TrainConfig`).
@@ -346,7 +377,7 @@ def _check_names(exp: Experiment, methods: Sequence[str], extra: Sequence[Method
     unknown = [m for m in methods if not is_method_name(m)]
     if unknown:
         raise ValueError(f"unknown method(s) {', '.join(unknown)}; choose from {', '.join(METHODS)} "
-                         "or danae-res[<filter>]")
+                         "or danae-res[<filter>] / danae-safe[<filter>]")
     seen: set[str] = set()
     dup = sorted({r.name for r in [*exp.train, *exp.test] if r.name in seen or seen.add(r.name)})
     if dup:

@@ -3,16 +3,19 @@
 * the names of :data:`~danae_lite.research.baselines.METHODS` (the baselines and the library filters of
   :mod:`danae_lite.research.baselines`, and the paper's DANAE), in table order;
 * ``danae-res[<filter>]``: the recommended denoiser (:class:`danae_lite.research.denoiser.DanaeRes`) on
-  the output of a filter of :data:`~danae_lite.research.baselines.METHODS`.
+  the output of a filter of :data:`~danae_lite.research.baselines.METHODS`;
+* ``danae-safe[<filter>]``: DANAE-res with a per-sample fallback and an error bar
+  (:class:`danae_lite.research.fallback.DanaeSafe`).
 
 Further methods (the variants of :mod:`danae_lite.research.variants`, a method of one's own) are given
 to the leaderboard as objects (``run_leaderboard(..., extra=[...])``), not by name.
 """
 from __future__ import annotations
 
-from .baselines import METHODS, denoiser_source, is_method_name
+from .baselines import METHODS, denoiser_name, is_method_name
 from .baselines import make_method as make_baseline
 from .denoiser import DanaeRes
+from .fallback import DanaeSafe
 from .methods import Method
 
 __all__ = ["METHODS", "is_method_name", "make_method"]
@@ -21,7 +24,8 @@ __all__ = ["METHODS", "is_method_name", "make_method"]
 def make_method(name: str) -> Method:
     """A fresh, unfitted method by leaderboard name (:func:`is_method_name`); ValueError for
     any other name."""
-    source = denoiser_source(name)
-    if source is not None:
-        return DanaeRes(source)
-    return make_baseline(name)
+    found = denoiser_name(name)
+    if found is None:
+        return make_baseline(name)
+    family, source = found
+    return DanaeSafe(source) if family == "danae-safe" else DanaeRes(source)
