@@ -26,7 +26,7 @@ from .book import fill
 _RECORD = "application/papermill.record/"
 
 # The README's paragraph on DANAE-res; its fields are names chapters 9 and 10 glue.
-RESULTS_CHAPTERS: tuple[str, ...] = ("09_danae_res", "10_no_harm")
+RESULTS_CHAPTERS: tuple[str, ...] = ("09_danae_res", "10_no_harm", "11_fallback")
 """The chapters whose glued values :data:`RESULTS` quotes, in order (a later one's value wins)."""
 RESULTS = """\
 Measured in chapter 9 on real OxIOD, holding out one handheld recording at a time (the methods
@@ -39,7 +39,16 @@ better on {ch6_cmp_roll_wins} held-out recordings); on pitch, {ch6_cmp_pitch_res
 {ch6_cmp_pitch_wins}). Fitted on BROAD's undisturbed trials and tested on its {ch6_cmpb_ntrials}
 disturbed ones, DANAE-res behind VQF has a mean total error of {ch6_cmpb_res_vqf:.2f}° against
 VQF's {ch6_cmpb_vqf:.2f}°, and its roll is worse than its filter's on {ch6_nhb_vqf_roll_worse}
-trials behind VQF and on {ch6_nhb_riann_roll_worse} behind RIANN (chapter 10)."""
+trials behind VQF and on {ch6_nhb_riann_roll_worse} behind RIANN (chapter 10).
+
+DANAE-safe (chapter 11) adds a per-sample fallback and an error bar. Within a motion, its 68 %
+and 95 % intervals covered {ch11_cov68_in:.0f} % and {ch11_cov95_in:.0f} % of the held-out
+samples on average; from one motion to another {ch11_cov68_each:.0f} % and
+{ch11_cov95_each:.0f} %, on BROAD's disturbed trials {ch11_cov68_broad:.0f} % and
+{ch11_cov95_broad:.0f} %. Over every protocol (four filters, three seeds), it was worse than its
+filter by more than 2 % in {ch11_abl_both_worse2} held-out recording × filter × angle cases,
+against {ch11_abl_gate_worse2} for DANAE-res; {ch11_n_met} of the targets set for it are met, and
+it costs {ch11_lat_median:.2f} ms per sample on one CPU thread."""
 
 
 def marker_lines(name: str) -> tuple[str, str]:

@@ -30,8 +30,9 @@ MAX_CODE_LINE = 88
 FIELD = re.compile(r"\{[A-Za-z_]\w*(?:![rsa])?(?::[^{}]*)?\}")
 INLINE_CODE = re.compile(r"`[^`]*`")
 MATH = re.compile(r"\$\$.*?\$\$|\$[^$]+\$", re.S)
-# section numbers: "## 1.7 Title", "section 6.3", "sections 1.5–1.7", "§2.6"
-SECTION = re.compile(r"^#+\s+[\d.]+|(?:[Ss]ections?|[Cc]hapters?|§)\s*\d+(?:\.\d+)*(?:\s*(?:[–-]|and|,)\s*\d+(?:\.\d+)*)*", re.M)
+# section and exercise numbers: "## 1.7 Title", "section 6.3", "sections 1.5–1.7", "§2.6",
+# "Exercise 11.3"
+SECTION = re.compile(r"^#+\s+[\d.]+|(?:[Ss]ections?|[Cc]hapters?|[Ee]xercises?|§)\s*\d+(?:\.\d+)*(?:\s*(?:[–-]|and|,)\s*\d+(?:\.\d+)*)*", re.M)
 LINK_TARGET = re.compile(r"\]\([^)]*\)|<https?://[^>]*>|https?://\S+")
 # a decimal (0.622, 1.3e-3 is written 0.0013 in prose) or an integer carrying a % or ° sign
 PROSE_NUMBER = re.compile(r"(?<![\w.])[-+−]?(\d+\.\d+|\d+(?=\s?(?:%|°)))(?![\w.]*\d)")
