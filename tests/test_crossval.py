@@ -175,3 +175,28 @@ def test_splits_in_workers_train_their_networks_together_first(cv_res, motions, 
     # 3 splits x 2 denoisers x (1 prediction network + 2 inner-fold gate networks)
     assert pooled == [18] and len(list(tmp_path.glob("*.pt"))) == 18
     pd.testing.assert_frame_equal(cv2.rows, cv_res.rows)
+
+
+def test_combine_joins_runs_with_different_seeds_and_refuses_a_method_twice():
+    import pandas as pd
+
+    def part(methods, seeds, seconds):
+        rows = pd.DataFrame([{c: None for c in crossval.ROW_COLUMNS} | {"method": m, "seeds": len(seeds)}
+                             for m in methods], columns=list(crossval.ROW_COLUMNS))
+        return crossval.CrossValidation(name="oxiod", data="real", rows=rows,
+                                        trials=pd.DataFrame(columns=list(crossval.TRIAL_COLUMNS)),
+                                        params=pd.DataFrame({"method": methods}), seconds=seconds,
+                                        seeds=seeds, methods=list(methods))
+
+    a = part(["vqf", "danae-res[vqf]"], (0, 1, 2), {"s1": 2.0, "total": 2.0})
+    b = part(["fusion", "danae-res[fusion]"], (0,), {"s1": 1.5, "total": 1.5})
+    c = crossval.combine([a, b])
+    assert c.methods == ["vqf", "danae-res[vqf]", "fusion", "danae-res[fusion]"]
+    assert c.seeds == (0, 1, 2) and c.seconds == {"s1": 3.5, "total": 3.5}
+    assert c.rows.set_index("method").seeds.to_dict() == {"vqf": 3, "danae-res[vqf]": 3, "fusion": 1,
+                                                          "danae-res[fusion]": 1}
+    assert c.corrections() == {"danae-res[vqf]": "vqf", "danae-res[fusion]": "fusion"}
+    with pytest.raises(ValueError, match="danae-res\\[vqf\\]"):
+        crossval.combine([a, a])
+    with pytest.raises(ValueError, match="different experiments"):
+        crossval.combine([a, crossval.CrossValidation(**{**b.__dict__, "name": "broad"})])

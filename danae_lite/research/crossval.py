@@ -446,5 +446,31 @@ def run_splits(
                            methods=list(dict.fromkeys(table.method)), coverage=coverage)
 
 
+def combine(parts: Sequence[CrossValidation]) -> CrossValidation:
+    """One cross-validation from several runs of :func:`run_splits` on the same experiment with
+    different methods (for instance three seeds behind one filter and one seed behind the
+    others): rows, trials, parameters and coverage concatenated, each row keeping its own
+    ``seeds`` count; wall times added per split. ValueError when the parts are of different
+    experiments or data, or run a method twice."""
+    if not parts:
+        raise ValueError("nothing to combine")
+    first = parts[0]
+    other = [p.name for p in parts if (p.name, p.data) != (first.name, first.data)]
+    if other:
+        raise ValueError(f"cannot combine cross-validations of different experiments: {first.name} and {other}")
+    methods = [m for p in parts for m in p.methods]
+    twice = sorted({m for m in methods if methods.count(m) > 1})
+    if twice:
+        raise ValueError(f"methods run in more than one part: {', '.join(twice)}")
+    seconds: dict[str, float] = {}
+    for p in parts:
+        for k, v in p.seconds.items():
+            seconds[k] = seconds.get(k, 0.0) + v
+    frames = {f: pd.concat([getattr(p, f) for p in parts], ignore_index=True)
+              for f in ("rows", "trials", "params", "coverage")}
+    return CrossValidation(name=first.name, data=first.data, seconds=seconds, methods=methods,
+                           seeds=tuple(sorted({s for p in parts for s in p.seeds})), **frames)
+
+
 def _with_threads(cfg: TrainConfig, threads: int) -> TrainConfig:
     return replace(cfg, num_threads=threads)

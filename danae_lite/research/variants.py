@@ -207,21 +207,22 @@ def ablations() -> dict[str, DanaeOn]:
 
 def generalisation(scenarios: dict[str, Any], *, sources: tuple[str, ...] = ("paper_kf", "vqf"),
                    seeds: tuple[int, ...] = (0,), train_config: TrainConfig | None = None,
-                   cache: Any = None, methods: tuple[str, ...] | None = None) -> pd.DataFrame:
+                   cache: Any = None, methods: tuple[str, ...] | None = None, jobs: int = 1) -> pd.DataFrame:
     """Train on each scenario's training recordings, test on every scenario's test recordings.
 
     ``scenarios`` maps a label to an :class:`~danae_lite.core.datasets.Experiment`. For each (train,
     test) pair, the filters in ``sources`` and ``DanaeOn(source)`` are fitted on the training
     side and evaluated on the test side (clean samples). Returns one row per pair, source and
     angle: the filter's RMSE, DANAE's RMSE (mean over seeds) and the gain [%]
-    ``100 (1 - danae / filter)``; negative gain = the learned correction hurts.
+    ``100 (1 - danae / filter)``; negative gain = the learned correction hurts. ``jobs``: worker
+    processes for each pair's networks (:func:`~danae_lite.research.leaderboard.run_leaderboard`).
     """
     rows = []
     for a, exp_a in scenarios.items():
         for b, exp_b in scenarios.items():
             exp = Experiment(exp_a.name, exp_a.data, exp_a.train, exp_b.test, f"train {a}, test {b}")
             board = run_leaderboard(exp, methods=methods or sources, seeds=seeds, train_config=train_config,
-                                    cache=cache, progress=False, extra=[DanaeOn(s) for s in sources])
+                                    cache=cache, progress=False, extra=[DanaeOn(s) for s in sources], jobs=jobs)
             w = board.wide("rmse", "clean")
             for s in sources:
                 for angle in ("roll", "pitch", "yaw"):
