@@ -5,8 +5,10 @@ The book renders the outputs committed with the notebooks (``execute_notebooks: 
 notebook carries a record of its run in ``metadata["danae"]["execution"]`` (:func:`stamp`), so
 that a test, and this command, can tell when its code changed afterwards (:func:`stale_reason`);
 a run with ``--cold`` (every network trained, in a new empty cache) is kept a second time, in
-``metadata["danae"]["cold_execution"]`` (:func:`cold_record`), so that each chapter can state
-its cold and its warm run time. See :func:`execute_book` for its safety rule and :func:`main` for its flags.
+``metadata["danae"]["cold_execution"]`` (:func:`cold_record`), and a run that trained no network
+in ``metadata["danae"]["warm_execution"]`` (:func:`warm_record`), each until the next run of its
+kind, so that each chapter can state its cold and its warm run time whichever of the two the
+stored outputs come from. See :func:`execute_book` for its safety rule and :func:`main` for its flags.
 """
 from __future__ import annotations
 
@@ -150,7 +152,9 @@ def stale_chapters(paths: Sequence[Path], data_sha256: str | None = None) -> lis
 
 def chapter_records(paths: Sequence[Path]) -> list[tuple[str, dict[str, Any]]]:
     """(chapter name, :func:`execution_record`) of each notebook in ``paths``, in order; a
-    chapter that once ran cold has its :func:`cold_record` under the key ``"cold"``.
+    chapter that once ran cold has its :func:`cold_record` under the key ``"cold"``, one that
+    once ran warm its :func:`warm_record` under ``"warm"`` (a stored run that trained no network
+    and was not the cold one is a warm run, kept or not).
 
     Raises ValueError naming the notebook when one carries no record."""
     import nbformat
@@ -162,18 +166,43 @@ def chapter_records(paths: Sequence[Path]) -> list[tuple[str, dict[str, Any]]]:
         if record is None:
             raise ValueError(f"{path}: no execution record (metadata.danae.execution); run "
                              "python -m danae_lite.execute first")
-        cold = cold_record(nb)
-        if cold is not None:
-            record["cold"] = cold
+        for key, kept in (("cold", cold_record(nb)), ("warm", warm_record(nb))):
+            if kept is not None:
+                record[key] = kept
+        cold = record.get("cold")
+        ran_cold = cold is not None and cold.get("executed") == record.get("executed")
+        if "warm" not in record and record.get("networks_trained") == 0 and not ran_cold:
+            record["warm"] = {k: v for k, v in record.items() if k != "cold"}   # it ran warm
         records.append((Path(path).stem, record))
     return records
+
+
+def _kept_record(nb: Mapping[str, Any], key: str) -> dict[str, Any] | None:
+    record = (nb.get("metadata") or {}).get("danae", {}).get(key)
+    return dict(record) if isinstance(record, Mapping) else None
 
 
 def cold_record(nb: Mapping[str, Any]) -> dict[str, Any] | None:
     """The record of the chapter's last run from an empty network cache (``--cold``), kept in
     ``nb.metadata["danae"]["cold_execution"]`` through later warm runs; ``None`` if it never ran cold."""
-    record = (nb.get("metadata") or {}).get("danae", {}).get("cold_execution")
-    return dict(record) if isinstance(record, Mapping) else None
+    return _kept_record(nb, "cold_execution")
+
+
+def warm_record(nb: Mapping[str, Any]) -> dict[str, Any] | None:
+    """The record of the chapter's last run that trained no network (not ``--cold``: every
+    network it needs found in the cache), kept in ``nb.metadata["danae"]["warm_execution"]``
+    through later cold runs; ``None`` if it never ran so."""
+    return _kept_record(nb, "warm_execution")
+
+
+def keep_run(nb: MutableMapping[str, Any], record: Mapping[str, Any], *, cold: bool) -> None:
+    """Keep the run of ``record`` a second time: as the chapter's :func:`cold_record` when it ran
+    ``cold``, as its :func:`warm_record` when it trained no network; otherwise keep neither
+    (a run that trained some networks and found others is neither cold nor warm)."""
+    if cold:
+        nb["metadata"]["danae"]["cold_execution"] = dict(record)
+    elif record.get("networks_trained") == 0:
+        nb["metadata"]["danae"]["warm_execution"] = dict(record)
 
 
 def write_pages(root: Path, folder: Path) -> None:
@@ -310,7 +339,8 @@ def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLik
         counted.
     cold
         The run started from an empty cache (``--cold``): its record is kept a second time,
-        as the chapter's :func:`cold_record`, which later warm runs leave in place.
+        as the chapter's :func:`cold_record`, which later warm runs leave in place (a run that
+        is not cold and trains no network is kept as its :func:`warm_record`, see :func:`keep_run`).
 
     Returns
     -------
@@ -357,8 +387,7 @@ def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLik
     seconds = time.perf_counter() - start
     counts = _network_counts(before, _network_files(networks), started) if networks is not None else None
     record = stamp(nb, seconds=seconds, data_dir=data_dir, fast=fast, networks=counts, data_sha256=data_sha256)
-    if cold:
-        nb.metadata["danae"]["cold_execution"] = dict(record)
+    keep_run(nb, record, cold=cold)
     _write_atomically(nb, out_path)
     return record
 

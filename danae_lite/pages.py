@@ -145,48 +145,83 @@ def _total(seconds: float) -> str:
     return f"**{seconds:,.1f}** ({minutes:.0f} min {rest:.0f} s)"
 
 
+def _same_run(a: Mapping[str, Any], b: Mapping[str, Any] | None) -> bool:
+    return b is not None and str(a.get("executed")) == str(b.get("executed"))
+
+
+def _counts(record: Mapping[str, Any]) -> str:
+    trained, cached = record.get("networks_trained"), record.get("networks_cached")
+    return "not recorded" if trained is None or cached is None else f"{trained} / {cached}"
+
+
 def times_markdown(records: Sequence[tuple[str, Mapping[str, Any]]]) -> str:
-    """A Markdown table of the stored run of each chapter and of its last run from an empty
-    cache (its cold record, where it has one), with their totals.
+    """A Markdown table of each chapter's last run from an empty cache ("cold": its cold record)
+    and its last run with every network it needs in the cache ("warm": its warm record), where
+    it has them, with their totals; the seconds of the run the stored outputs come from are in
+    bold (a stored run that is neither is named beside the chapter).
 
     ``records`` holds (chapter name, execution record) pairs in the book's order (see
     :func:`danae_lite.execute.chapter_records`)."""
-    lines = ["| chapter | stored run [s] | networks | executed (UTC) | from an empty cache [s] | "
-             "networks | executed (UTC) |", "|---|---:|---|---|---:|---|---|"]
-    total = cold_total = 0.0
+    lines = ["| chapter | cold [s] | networks trained / found | cold run (UTC) | "
+             "warm [s] | networks trained / found | warm run (UTC) |",
+             "|---|---:|---|---|---:|---|---|"]
+    totals = {"cold": 0.0, "warm": 0.0}
     for chapter, record in records:
-        total += float(record["seconds"])
-        cold = record.get("cold")
-        if cold is None:
-            cold_cells = "— | |"
-        else:
-            cold_total += float(cold["seconds"])
-            cold_cells = f"{cold['seconds']:,.1f} | {_networks(cold)} | {_when(cold)}"
-        lines.append(f"| {chapter} | {record['seconds']:,.1f} | {_networks(record)} | {_when(record)} | "
-                     f"{cold_cells} |")
-    every_cold = all(r.get("cold") is not None for _, r in records)
-    lines.append(f"| **all chapters** | {_total(total)} | | | {_total(cold_total) if every_cold else '—'} | | |")
+        cells, stored = [], False
+        for key in totals:
+            kept = record.get(key)
+            if kept is None:
+                cells.append("— | |")
+                continue
+            totals[key] += float(kept["seconds"])
+            seconds = f"{kept['seconds']:,.1f}"
+            if _same_run(record, kept) and not stored:
+                seconds, stored = f"**{seconds}**", True
+            cells.append(f"{seconds} | {_counts(kept)} | {_when(kept)[:16]}")
+        if not stored:
+            chapter += f" (stored: {record['seconds']:,.1f} s, {_counts(record)}, {_when(record)[:16]})"
+        lines.append(f"| {chapter} | {cells[0]} | {cells[1]} |")
+    every = {k: all(r.get(k) is not None for _, r in records) for k in totals}
+    cold, warm = ((_total(totals[k]) if every[k] else "—") for k in totals)
+    lines.append(f"| **all chapters** | {cold} | | | {warm} | | |")
     return "\n".join(lines)
+
+
+def _trained_clause(record: Mapping[str, Any]) -> str:
+    trained, cached = record.get("networks_trained") or 0, record.get("networks_cached") or 0
+    if trained + cached == 0:
+        return ""
+    found = f" and finding {cached} that earlier chapters trained" if cached else ""
+    return f", training {trained} networks{found}"
 
 
 def run_time_markdown(record: Mapping[str, Any]) -> str:
     """One sentence on a chapter's stored run, its wall time and networks (its execution
-    record), and on its last run from an empty cache where it has a cold record (``"cold"``)."""
+    record), on its last run from an empty cache where it has a cold record (``"cold"``) and on
+    its last run with every network cached where it has a warm record (``"warm"``) that
+    used networks."""
     seconds = f"{record['seconds']:,.1f} s"
     trained, cached = record.get("networks_trained"), record.get("networks_cached")
     where = "on the reference machine (2 CPU cores, no GPU)"
-    cold = record.get("cold")
+    perf = " (see [Performance](../book/performance.md))"
+    cold, warm = record.get("cold"), record.get("warm")
+    warm_used = warm is not None and (warm.get("networks_cached") or 0) > 0
+    warm_part = (f"; with every network in the cache ({str(warm['executed'])[:10]}) it took "
+                 f"{warm['seconds']:,.1f} s" if warm_used and not _same_run(record, warm) else "")
+    if cold is not None and _same_run(record, cold):
+        return (f"*Run time*: the stored outputs of this chapter come from the last run of the whole "
+                f"book from an empty cache ({str(cold['executed'])[:10]}): {seconds} {where}"
+                f"{_trained_clause(cold)}{warm_part}{perf}.")
     if cold is not None:
         nets = cold.get("networks_trained") or 0
         what = f", training {nets} networks" if nets else ""
         day = str(cold["executed"])[:10]
         after = (f"; from an empty cache, in the last run of the whole book from scratch ({day}), it took "
-                 f"{cold['seconds']:,.1f} s{what} (see [Performance](../book/performance.md))")
+                 f"{cold['seconds']:,.1f} s{what}{perf}")
     elif trained is None or cached is None or trained + cached == 0:
         after = ""
     else:
-        after = ("; from an empty cache it trains them all and takes longer (see "
-                 "[Performance](../book/performance.md))")
+        after = f"; from an empty cache it trains them all and takes longer{perf}"
     if trained is None or cached is None or trained + cached == 0:
         return f"*Run time*: the stored run of this chapter took {seconds} {where}{after}."
     return (f"*Run time*: the stored run of this chapter took {seconds} {where}, with "

@@ -328,3 +328,11 @@ def test_a_run_counts_the_networks_it_trained_and_loaded(tmp_path):
     assert (cold["networks_trained"], cold["networks_cached"]) == (2, 0)
     (_, listed), = execute.chapter_records([tmp_path / "b" / "nets.ipynb"])
     assert listed["cold"] == cold and listed["seconds"] == record["seconds"]
+    # the warm run is kept too, and stays through the next cold run (in a new empty cache)
+    assert execute.warm_record(warm_nb) == record and execute.warm_record(
+        nbformat.read(tmp_path / "a" / "nets.ipynb", as_version=4)) is None
+    execute_book([tmp_path / "b" / "nets.ipynb"], data_dir=None, cache_dir=tmp_path / "cache2", fast=True,
+                 out_dir=tmp_path / "c", progress=False, cold=True)
+    again_cold = nbformat.read(tmp_path / "c" / "nets.ipynb", as_version=4)
+    assert execute.warm_record(again_cold) == record
+    assert execute.cold_record(again_cold) == execution_record(again_cold) != cold

@@ -51,7 +51,7 @@ def _notebook(path: Path, seconds: float, trained: int, cached: int, glued=()) -
 
 def test_update_block_writes_once_and_the_times_add_up(tmp_path):
     nbs = [_notebook(tmp_path / "01_a.ipynb", 8.25, 0, 0),
-           _notebook(tmp_path / "02_b.ipynb", 70.0, 2, 4)]
+           _notebook(tmp_path / "02_b.ipynb", 70.0, 0, 4)]
     page = tmp_path / "page.md"
     begin, end = pages.marker_lines("chapter-times")
     page.write_text(f"# P\n\nbefore\n\n{begin}\nold\n{end}\n\nafter\n")
@@ -61,9 +61,14 @@ def test_update_block_writes_once_and_the_times_add_up(tmp_path):
     text = page.read_text()
     assert text.startswith("# P\n\nbefore\n\n") and text.endswith("\n\nafter\n")
     rows = pages.block(page, "chapter-times").splitlines()
-    assert rows[2] == "| 01_a | 8.2 | none | 2026-11-27 14:00:00 | — | | |"   # 8.25: round half to even
-    assert rows[3] == "| 02_b | 70.0 | 2 trained, 4 found in the cache | 2026-11-27 14:00:00 | — | | |"
-    assert rows[4] == "| **all chapters** | **78.2** (1 min 18 s) | | | — | | |"
+    # a stored run that trained no network is the chapter's warm run, with or without a kept record
+    assert rows[2] == "| 01_a | — | | | **8.2** | 0 / 0 | 2026-11-27 14:00 |"   # round half to even
+    assert rows[3] == "| 02_b | — | | | **70.0** | 0 / 4 | 2026-11-27 14:00 |"
+    assert rows[4] == "| **all chapters** | — | | | **78.2** (1 min 18 s) | | |"
+    # a run that trained some networks and found others is neither: the row names it
+    partial = chapter_records([_notebook(tmp_path / "03_c.ipynb", 70.0, 2, 4)])
+    assert pages.times_markdown(partial).splitlines()[2] == (
+        "| 03_c (stored: 70.0 s, 2 / 4, 2026-11-27 14:00) | — | | | — | | |")
 
 
 def test_glued_values_reads_numbers_text_and_markdown(tmp_path):
@@ -127,9 +132,37 @@ def test_a_cold_record_adds_the_run_from_an_empty_cache_to_the_sentence_and_the_
         "run of the whole book from scratch (2026-11-28), it took 180.0 s, training 6 networks (see "
         "[Performance](../book/performance.md)).")
     rows = pages.times_markdown([("01_a", with_cold), ("02_b", without)]).splitlines()
-    assert rows[2] == ("| 01_a | 20.0 | 0 trained, 6 found in the cache | 2026-11-27 14:00:00 | 180.0 | "
-                       "6 trained, 0 found in the cache | 2026-11-28 00:10:00 |")
-    assert rows[3] == "| 02_b | 10.0 | none | 2026-11-27 14:00:00 | — | | |"
-    assert rows[4] == "| **all chapters** | **30.0** (0 min 30 s) | | | — | | |"   # one chapter never ran cold
+    assert rows[2] == "| 01_a | 180.0 | 6 / 0 | 2026-11-28 00:10 | **20.0** | 0 / 6 | 2026-11-27 14:00 |"
+    assert rows[3] == "| 02_b | — | | | **10.0** | 0 / 0 | 2026-11-27 14:00 |"
+    assert rows[4] == "| **all chapters** | — | | | **30.0** (0 min 30 s) | | |"   # one chapter never ran cold
     both = pages.times_markdown([("01_a", with_cold), ("02_b", {**without, "cold": with_cold["cold"]})])
-    assert both.splitlines()[-1] == "| **all chapters** | **30.0** (0 min 30 s) | | | **360.0** (6 min 0 s) | | |"
+    assert both.splitlines()[-1] == "| **all chapters** | **360.0** (6 min 0 s) | | | **30.0** (0 min 30 s) | | |"
+
+
+def test_stored_outputs_from_the_cold_run_still_state_the_warm_run(tmp_path):
+    path = _notebook(tmp_path / "03_c.ipynb", 200.0, 6, 2)
+    nb = json.loads(path.read_text())
+    danae = nb["metadata"]["danae"]
+    danae["cold_execution"] = dict(danae["execution"])                    # the stored run ran cold
+    danae["warm_execution"] = {"seconds": 50.0, "networks_trained": 0, "networks_cached": 8,
+                               "executed": "2026-11-26T10:00:00+00:00"}
+    path.write_text(json.dumps(nb))
+    (_, record), = chapter_records([path])
+    assert pages.run_time_markdown(record) == (
+        "*Run time*: the stored outputs of this chapter come from the last run of the whole book from "
+        "an empty cache (2026-11-27): 200.0 s on the reference machine (2 CPU cores, no GPU), training 6 "
+        "networks and finding 2 that earlier chapters trained; with every network in the cache "
+        "(2026-11-26) it took 50.0 s (see [Performance](../book/performance.md)).")
+    assert pages.times_markdown([("03_c", record)]).splitlines()[2] == (
+        "| 03_c | **200.0** | 6 / 2 | 2026-11-27 14:00 | 50.0 | 0 / 8 | 2026-11-26 10:00 |")
+    # a chapter without networks says nothing of a warm run: cold and warm do the same work
+    plain = _notebook(tmp_path / "01_a.ipynb", 11.0, 0, 0)
+    nb = json.loads(plain.read_text())
+    nb["metadata"]["danae"]["cold_execution"] = dict(nb["metadata"]["danae"]["execution"])
+    plain.write_text(json.dumps(nb))
+    (_, record), = chapter_records([plain])
+    assert "warm" not in record
+    assert pages.run_time_markdown(record) == (
+        "*Run time*: the stored outputs of this chapter come from the last run of the whole book from "
+        "an empty cache (2026-11-27): 11.0 s on the reference machine (2 CPU cores, no GPU) (see "
+        "[Performance](../book/performance.md)).")
