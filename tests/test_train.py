@@ -312,6 +312,26 @@ def test_save_bare_model(tmp_path):
     for k, v in net.state_dict().items():
         assert torch.equal(v, net2.state_dict()[k])
 
+def test_two_processes_storing_the_same_network_at_once_both_succeed(tmp_path, monkeypatch):
+    # the other process (another chapter under pytest's workers) writes and replaces the same
+    # file between this one's write and its replace: both must end with a whole, loadable file
+    from danae_lite.core import checkpoints
+
+    path, real_replace, calls = tmp_path / "net.pt", checkpoints.os.replace, []
+
+    def interleaved(src, dst):
+        if not calls:
+            calls.append(src)
+            save(DanaeBig(hidden=4), path)               # the other process, start to finish
+        real_replace(src, dst)
+
+    monkeypatch.setattr(checkpoints.os, "replace", interleaved)
+    save(DanaeBig(hidden=4, in_channels=2), path)
+    net, _, _ = load(path, expect_arch="big")
+    assert net.in_channels == 2                            # the last replace wins, whole
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["net.pt"]   # no temporary left
+
+
 def test_save_rejects_unplain_metadata(tmp_path):
     with pytest.raises(TypeError, match="metadata.bad"):
         save(DanaePaper(hidden=4), tmp_path / "x.pt", metadata={"bad": object()})
