@@ -195,10 +195,20 @@ def warm_record(nb: Mapping[str, Any]) -> dict[str, Any] | None:
     return _kept_record(nb, "warm_execution")
 
 
+SAME_OUTPUTS = ("code_sha256", "data_sha256", "data", "fast")
+"""Fields of two execution records that must agree for both runs to have computed the same outputs."""
+
+
 def keep_run(nb: MutableMapping[str, Any], record: Mapping[str, Any], *, cold: bool) -> None:
     """Keep the run of ``record`` a second time: as the chapter's :func:`cold_record` when it ran
     ``cold``, as its :func:`warm_record` when it trained no network; otherwise keep neither
-    (a run that trained some networks and found others is neither cold nor warm)."""
+    (a run that trained some networks and found others is neither cold nor warm). A kept record
+    of other code cells or other data (:data:`SAME_OUTPUTS`) is dropped: it timed other outputs."""
+    danae = nb["metadata"]["danae"]
+    for key in ("cold_execution", "warm_execution"):
+        kept = danae.get(key)
+        if isinstance(kept, Mapping) and any(kept.get(f) != record.get(f) for f in SAME_OUTPUTS):
+            del danae[key]
     if cold:
         nb["metadata"]["danae"]["cold_execution"] = dict(record)
     elif record.get("networks_trained") == 0:

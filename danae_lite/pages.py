@@ -209,14 +209,14 @@ def run_time_markdown(record: Mapping[str, Any]) -> str:
     warm_part = (f"; with every network in the cache ({str(warm['executed'])[:10]}) it took "
                  f"{warm['seconds']:,.1f} s" if warm_used and not _same_run(record, warm) else "")
     if cold is not None and _same_run(record, cold):
-        return (f"*Run time*: the stored outputs of this chapter come from the last run of the whole "
-                f"book from an empty cache ({str(cold['executed'])[:10]}): {seconds} {where}"
+        return (f"*Run time*: the stored outputs of this chapter come from its last run from an empty "
+                f"network cache ({str(cold['executed'])[:10]}): {seconds} {where}"
                 f"{_trained_clause(cold)}{warm_part}{perf}.")
     if cold is not None:
         nets = cold.get("networks_trained") or 0
         what = f", training {nets} networks" if nets else ""
         day = str(cold["executed"])[:10]
-        after = (f"; from an empty cache, in the last run of the whole book from scratch ({day}), it took "
+        after = (f"; from an empty network cache, in its last run from scratch ({day}), it took "
                  f"{cold['seconds']:,.1f} s{what}{perf}")
     elif trained is None or cached is None or trained + cached == 0:
         after = ""

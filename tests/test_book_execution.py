@@ -336,3 +336,21 @@ def test_a_run_counts_the_networks_it_trained_and_loaded(tmp_path):
     again_cold = nbformat.read(tmp_path / "c" / "nets.ipynb", as_version=4)
     assert execute.warm_record(again_cold) == record
     assert execute.cold_record(again_cold) == execution_record(again_cold) != cold
+
+
+def test_kept_records_of_other_code_or_data_are_dropped():
+    """A cold or warm record kept from a run of other code cells (or other data) timed other
+    outputs: the next run drops it instead of stating it beside the new outputs."""
+    old = {"code_sha256": "a" * 64, "data_sha256": "d", "data": "real", "fast": False,
+           "seconds": 50.0, "networks_trained": 0, "networks_cached": 6}
+    nb = {"metadata": {"danae": {"cold_execution": {**old, "networks_trained": 6, "networks_cached": 0},
+                                 "warm_execution": dict(old)}}}
+    same_code = {**old, "seconds": 40.0, "networks_trained": 3, "networks_cached": 3}
+    execute.keep_run(nb, same_code, cold=False)         # neither cold nor warm: both kept
+    assert set(nb["metadata"]["danae"]) == {"cold_execution", "warm_execution"}
+    new_code = {**old, "code_sha256": "b" * 64, "seconds": 45.0}
+    execute.keep_run(nb, new_code, cold=False)          # warm, other code: the old cold record goes
+    assert nb["metadata"]["danae"] == {"warm_execution": new_code}
+    other_data = {**new_code, "data_sha256": "e", "networks_trained": 6, "networks_cached": 0}
+    execute.keep_run(nb, other_data, cold=True)
+    assert nb["metadata"]["danae"] == {"cold_execution": other_data}

@@ -99,6 +99,8 @@ def test_simulated(experiment: str, tmp_path: Path, capsys: pytest.CaptureFixtur
     m = check_outputs(tmp_path, experiment, "simulated", [0])
     run_info = json.loads((tmp_path / "run.json").read_text())
     assert run_info["fast"] is True and run_info["train_config"]["max_steps"] == 5
+    # validation windows tile the tails (20 samples apart), as in chapters 3 and 4
+    assert run_info["train_config"]["val_stride"] == run_info["train_config"]["window"] == 20
     seed_table = pd.read_csv(tmp_path / "seed_table.csv")
     kf_rows = seed_table[seed_table.method == "kf"].set_index("angle")
     for angle in ANGLES[experiment]:  # one test recording: the per-recording rows are the totals

@@ -128,8 +128,8 @@ def test_a_cold_record_adds_the_run_from_an_empty_cache_to_the_sentence_and_the_
     assert with_cold["cold"]["seconds"] == 180.0 and "cold" not in without
     assert pages.run_time_markdown(with_cold) == (
         "*Run time*: the stored run of this chapter took 20.0 s on the reference machine (2 CPU cores, "
-        "no GPU), with 6 of its 6 trained networks found in the cache; from an empty cache, in the last "
-        "run of the whole book from scratch (2026-11-28), it took 180.0 s, training 6 networks (see "
+        "no GPU), with 6 of its 6 trained networks found in the cache; from an empty network cache, "
+        "in its last run from scratch (2026-11-28), it took 180.0 s, training 6 networks (see "
         "[Performance](../book/performance.md)).")
     rows = pages.times_markdown([("01_a", with_cold), ("02_b", without)]).splitlines()
     assert rows[2] == "| 01_a | 180.0 | 6 / 0 | 2026-11-28 00:10 | **20.0** | 0 / 6 | 2026-11-27 14:00 |"
@@ -149,8 +149,8 @@ def test_stored_outputs_from_the_cold_run_still_state_the_warm_run(tmp_path):
     path.write_text(json.dumps(nb))
     (_, record), = chapter_records([path])
     assert pages.run_time_markdown(record) == (
-        "*Run time*: the stored outputs of this chapter come from the last run of the whole book from "
-        "an empty cache (2026-11-27): 200.0 s on the reference machine (2 CPU cores, no GPU), training 6 "
+        "*Run time*: the stored outputs of this chapter come from its last run from an "
+        "empty network cache (2026-11-27): 200.0 s on the reference machine (2 CPU cores, no GPU), training 6 "
         "networks and finding 2 that earlier chapters trained; with every network in the cache "
         "(2026-11-26) it took 50.0 s (see [Performance](../book/performance.md)).")
     assert pages.times_markdown([("03_c", record)]).splitlines()[2] == (
@@ -163,6 +163,6 @@ def test_stored_outputs_from_the_cold_run_still_state_the_warm_run(tmp_path):
     (_, record), = chapter_records([plain])
     assert "warm" not in record
     assert pages.run_time_markdown(record) == (
-        "*Run time*: the stored outputs of this chapter come from the last run of the whole book from "
-        "an empty cache (2026-11-27): 11.0 s on the reference machine (2 CPU cores, no GPU) (see "
+        "*Run time*: the stored outputs of this chapter come from its last run from an "
+        "empty network cache (2026-11-27): 11.0 s on the reference machine (2 CPU cores, no GPU) (see "
         "[Performance](../book/performance.md)).")

@@ -438,8 +438,8 @@ def reproduce(
     (``kf_config``) on the recordings as loaded (no frame alignment), DANAE
     (:class:`~danae_lite.core.paper_danae.PaperDanae`) with raw targets on every target sample, the
     metrics of :func:`danae_lite.core.scoring.score_rows`; ``run_leaderboard(exp, extra=[PaperKF(),
-    Danae(targets="raw", clean_targets=False, stride=1, val_stride=1)], align=False)`` gives the same numbers
-    (``tests/test_pipeline.py``).
+    Danae(targets="raw", clean_targets=False, stride=1, val_stride=config.val_stride)],
+    align=False)`` gives the same numbers (``tests/test_pipeline.py``).
 
     Parameters
     ----------
