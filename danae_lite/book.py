@@ -17,6 +17,10 @@ prose, so that the number reads the same in the HTML book and in JupyterLab:
   recorded values (Python's format mini-language); a chapter calls it in a cell whose input
   the book removes and JupyterLab collapses, so both show the sentence with its numbers.
 
+and :func:`show_figure`, which shows a figure with its numbered caption as outputs of the cell,
+so that the HTML book and JupyterLab both show the caption under the figure (its alt text is
+the cell's ``mystnb.image.alt`` metadata).
+
 The command that re-executes the chapters and stores their outputs is
 :mod:`danae_lite.execute` (``make execute``); the book only renders those outputs.
 """
@@ -110,3 +114,17 @@ def prose(template: str) -> None:
     from IPython.display import Markdown, display
 
     display(Markdown(fill(template.strip("\n"), _RECORDED)))
+
+
+def show_figure(fig: Any, label: str, caption: str) -> None:
+    """Display the Matplotlib figure ``fig``, then its caption, ``*label — caption*`` (e.g.
+    ``label="Figure 2.1"``), as a Markdown output right under it, and close the figure so that
+    it is not shown twice."""
+    import matplotlib.pyplot as plt
+    from IPython.display import Markdown, display
+
+    if not re.fullmatch(r"Figure \d+\.\d+", label):
+        raise ValueError(f"show_figure: label {label!r} is not 'Figure N.K'")
+    display(fig)
+    display(Markdown(f"*{label} — {caption.strip()}*"))
+    plt.close(fig)

@@ -217,12 +217,10 @@ def keep_run(nb: MutableMapping[str, Any], record: Mapping[str, Any], *, cold: b
 
 def write_pages(root: Path, folder: Path) -> None:
     """Rewrite the blocks of ``README.md``, ``book/performance.md`` and the chapters' opening
-    cells that quote the stored chapters of ``_toc.yml`` in ``folder`` (:mod:`danae_lite.pages`);
-    names each page that moved.
+    cells that quote the stored chapters of ``_toc.yml`` in ``folder``, the committed benchmark
+    run and the committed CI timings (:mod:`danae_lite.pages`); names each page that moved.
 
     Raises ValueError when a chapter carries no execution record or a page lacks its block."""
-    import nbformat
-
     from . import pages
 
     if not (root / "book" / "performance.md").is_file():
@@ -232,14 +230,15 @@ def write_pages(root: Path, folder: Path) -> None:
     for path, (_, record) in zip(paths, records):
         if pages.update_notebook_block(path, "run-time", pages.run_time_markdown(record)):
             print(f"{path.name}: its run time rewritten from its execution record")
-    blocks = [(root / "book" / "performance.md", "chapter-times", pages.times_markdown(records))]
-    quoted = [folder / f"{c}.ipynb" for c in pages.RESULTS_CHAPTERS]
-    if all(p.is_file() for p in quoted):
-        blocks.append((root / "README.md", "results",
-                       pages.results_markdown([nbformat.read(p, as_version=4) for p in quoted])))
+    report = pages.read_run(root, pages.BENCHMARK_RUN)
+    timings = pages.timings_markdown(pages.read_run(root, pages.COMMANDS_RUN), records, report)
+    performance = root / "book" / "performance.md"
+    blocks = [(performance, "chapter-times", pages.times_markdown(records)),
+              (performance, "benchmark", pages.benchmark_markdown(report)),
+              (performance, "timings", timings), (root / "README.md", "timings", timings)]
     for page, name, content in blocks:
         if pages.update_block(page, name, content):
-            print(f"{page.relative_to(root)}: block {name!r} rewritten from the stored chapters")
+            print(f"{page.relative_to(root)}: block {name!r} rewritten from the stored runs")
 
 
 def stamp(nb: MutableMapping[str, Any], *, seconds: float, data_dir: str | os.PathLike[str] | None,

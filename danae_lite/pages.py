@@ -6,51 +6,30 @@ Three places quote what the stored chapters hold:
   execution record (:func:`danae_lite.execute.execution_record`);
 * each chapter's opening Markdown cell, its own run time (:func:`run_time_markdown`; a Markdown
   cell, so writing it leaves the chapter's record valid);
-* ``README.md``, the measured case for the recommended denoiser: :data:`RESULTS` filled with the
-  values chapters 9 and 10 glued (:func:`glued_values`, :func:`danae_lite.book.fill`).
+* ``book/performance.md``, the benchmark: :func:`benchmark_markdown` of the committed benchmark
+  run (:data:`BENCHMARK_RUN`, written by ``make bench``);
+* ``README.md`` and ``book/performance.md``, the timings of the project's commands:
+  :func:`timings_markdown` of the committed fresh-clone CI run (:data:`COMMANDS_RUN`, written by
+  ``benchmarks/ci_times.py``), the chapters' records and the benchmark run.
 
 Each sits between two marker lines, ``<!-- begin NAME: ... -->`` and ``<!-- end NAME -->``
-(invisible on GitHub, in the book and in JupyterLab). ``python -m danae_lite.execute`` rewrites both after
-every run in place (and ``--pages`` alone), and ``tests/test_pages.py`` fails when a page differs
-from the stored chapters.
+(invisible on GitHub, in the book and in JupyterLab). ``python -m danae_lite.execute`` rewrites them
+after every run in place (and ``--pages`` alone), and ``tests/test_pages.py`` fails when a page
+differs from what they quote.
 """
 from __future__ import annotations
 
-import ast
+import json
 from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from .book import fill
 
-_RECORD = "application/papermill.record/"
-
-# The README's paragraph on DANAE-res; its fields are names chapters 9 and 10 glue.
-RESULTS_CHAPTERS: tuple[str, ...] = ("09_danae_res", "10_no_harm", "11_fallback")
-"""The chapters whose glued values :data:`RESULTS` quotes, in order (a later one's value wins)."""
-RESULTS = """\
-Measured in chapter 9 on real OxIOD, holding out one handheld recording at a time (the methods
-fitted on the other handheld recordings, three seeds): on roll, {ch6_cmp_roll_res} has an RMSE
-of {ch6_cmp_roll_res_rmse:.4f} rad against {ch6_cmp_roll_lib_rmse:.4f} rad for
-{ch6_cmp_roll_lib}, the best library filter on roll (a reduction of {ch6_cmp_roll_red:+.1f} %,
-better on {ch6_cmp_roll_wins} held-out recordings); on pitch, {ch6_cmp_pitch_res} has
-{ch6_cmp_pitch_res_rmse:.4f} rad against {ch6_cmp_pitch_lib_rmse:.4f} rad for
-{ch6_cmp_pitch_lib}, the best on pitch (a reduction of {ch6_cmp_pitch_red:+.1f} %, better on
-{ch6_cmp_pitch_wins}). Fitted on BROAD's undisturbed trials and tested on its {ch6_cmpb_ntrials}
-disturbed ones, DANAE-res behind VQF has a mean total error of {ch6_cmpb_res_vqf:.2f}° against
-VQF's {ch6_cmpb_vqf:.2f}°, and its roll is worse than its filter's on {ch6_nhb_vqf_roll_worse}
-trials behind VQF and on {ch6_nhb_riann_roll_worse} behind RIANN (chapter 10).
-
-DANAE-safe (chapter 11) adds a per-sample fallback and an error bar. Within a motion, its 68 %
-and 95 % intervals covered {ch11_cov68_in:.0f} % and {ch11_cov95_in:.0f} % of the held-out
-samples on average; from one motion to another {ch11_cov68_each:.0f} % and
-{ch11_cov95_each:.0f} %, on BROAD's disturbed trials {ch11_cov68_broad:.0f} % and
-{ch11_cov95_broad:.0f} %. Pooled over the protocols (behind VQF with three seeds, the paper's KF
-and Fusion with one, and on BROAD VQF and RIANN with three), it was worse than its filter by more
-than 2 % in {ch11_abl_both_worse2} held-out recording × filter × angle cases, against
-{ch11_abl_gate_worse2} for DANAE-res; {ch11_n_met} targets set for it are met in full, and it
-costs {ch11_lat_median:.2f} ms per sample on one CPU thread."""
-
+BENCHMARK_RUN = Path("benchmarks") / "results" / "reference.json"
+"""The committed run of ``benchmarks/run.py`` that the Performance page quotes (repository-relative)."""
+COMMANDS_RUN = Path("benchmarks") / "results" / "commands.json"
+"""The committed fresh-clone run of ``.ci/run`` whose times the README and the Performance page
+quote (repository-relative; written by ``benchmarks/ci_times.py``)."""
 
 def marker_lines(name: str) -> tuple[str, str]:
     """The two lines that enclose the block ``name``."""
@@ -228,31 +207,114 @@ def run_time_markdown(record: Mapping[str, Any]) -> str:
             f"{cached} of its {trained + cached} trained networks found in the cache{after}.")
 
 
-def glued_values(nb: Mapping[str, Any]) -> dict[str, Any]:
-    """Name -> value of every glued output of a stored notebook: Markdown values as their text,
-    others as the Python literal their text shows (its text where it is no literal)."""
-    values: dict[str, Any] = {}
-    for cell in nb.get("cells", []):
-        for out in cell.get("outputs", []):
-            name = out.get("metadata", {}).get("scrapbook", {}).get("name")
-            if not name:
-                continue
-            data = out.get("data", {})
-            if _RECORD + "text/markdown" in data:
-                values[name] = "".join(data[_RECORD + "text/markdown"])
-                continue
-            text = "".join(data.get(_RECORD + "text/plain", ""))
-            try:
-                values[name] = ast.literal_eval(text)
-            except (ValueError, SyntaxError):
-                values[name] = text
-    return values
+def read_run(root: Path, relative: Path) -> dict[str, Any]:
+    """The committed JSON record ``root / relative`` (a benchmark or command-timing run)."""
+    path = root / relative
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (OSError, ValueError) as exc:
+        raise ValueError(f"{path}: expected the committed JSON record of a run ({exc})") from exc
 
 
-def results_markdown(chapters: Sequence[Mapping[str, Any]]) -> str:
-    """The README's paragraph on DANAE-res (:data:`RESULTS`) from the glued values of
-    ``chapters`` (the notebooks of :data:`RESULTS_CHAPTERS`, in order)."""
-    values: dict[str, Any] = {}
-    for nb in chapters:
-        values.update(glued_values(nb))
-    return fill(RESULTS, values)
+# (key of the benchmark's summary, label, format of the value)
+BENCHMARK_ROWS: tuple[tuple[str, str, str], ...] = (
+    ("kf_samples_per_s", "KF (`run_kf`, authors' setting) [samples/s]", "{:,.0f}"),
+    ("kf_general_samples_per_s", "KF, general 6×3-gain path [samples/s]", "{:,.0f}"),
+    ("fusion_samples_per_s", "Fusion (imufusion, C) [samples/s]", "{:,.0f}"),
+    ("vqf_samples_per_s", "VQF (C++) [samples/s]", "{:,.0f}"),
+    ("madgwick_samples_per_s", "Madgwick (ahrs, pure Python) [samples/s]", "{:,.0f}"),
+    ("mahony_samples_per_s", "Mahony (ahrs, pure Python) [samples/s]", "{:,.0f}"),
+    ("danae_train_steps_per_s", "DANAE training, batch 16 [steps/s]", "{:,.1f}"),
+    ("danae_train_steps_per_s_b256", "DANAE training, batch 256 [steps/s]", "{:,.1f}"),
+    ("train_bare_windows_per_s", "bare training step, batch 16 [windows/s]", "{:,.0f}"),
+    ("train_loop_windows_per_s", "`train.train`, paper settings, validation included [windows/s]", "{:,.0f}"),
+    ("train_loop_over_bare", "loop / bare step", "{:.2f}"),
+    ("train_gflops", "training arithmetic rate [GFLOP/s]", "{:,.1f}"),
+    ("matmul_gflops", "float32 matmul peak, same threads [GFLOP/s]", "{:,.0f}"),
+    ("train_over_matmul_peak", "training rate / matmul peak", "{:.2f}"),
+    ("paper_epoch_50k_s", "one paper epoch over 50,000 windows [s]", "{:.1f}"),
+    ("predict_100k_s", "`predict` over 100,000 samples [s]", "{:.2f}"),
+    ("predict_gemm_over_library_conv", "`predict`: matrix-product / torch convolutions [time ratio]", "{:.2f}"),
+    ("danae_infer_ms_per_sample", "paper network streaming, one window per sample [ms/sample]", "{:.2f}"),
+    ("causal_h128_stream_ms_per_sample", "causal network streaming, hidden 128 [ms/sample]", "{:.3f}"),
+    ("denoiser_stream_ms_per_sample", "DANAE-res behind VQF, streaming, median [ms/sample]", "{:.3f}"),
+    ("denoiser_stream_p99_ms", "DANAE-res behind VQF, streaming, p99 [ms/sample]", "{:.3f}"),
+)
+"""The rows of the Performance page's benchmark table."""
+
+
+def _path_name(machine: Mapping[str, Any]) -> str:
+    """'AVX2 (forced)', or the instruction set torch's kernels use, e.g. 'AVX-512 (native)'."""
+    isa = machine["isa"]
+    native = {"AVX512": "AVX-512"}.get(isa["torch_capability"], isa["torch_capability"])
+    return "AVX2 (forced)" if isa.get("avx2_forced") else f"{native} (native)"
+
+
+def benchmark_markdown(report: Mapping[str, Any]) -> str:
+    """One sentence on the machine and the run, then a table of the benchmark's figures, one
+    column per instruction-set path (the native one, and AVX2 forced where the run has it)."""
+    mach = report["machine"]
+    paths = {_path_name(mach): report}
+    if "avx2_path" in report:
+        paths[_path_name(report["avx2_path"]["machine"])] = report["avx2_path"]
+    libs = ", ".join(f"{name} {version}" for name, version in mach["libraries"].items())
+    threads = mach["torch_threads_default"]
+    lines = [f"Measured on {str(report['date'])[:10]} by one run of `make bench` "
+             f"({report['total_wall_s']:.0f} s in all) on an {mach['cpu_model']} with "
+             f"{mach['usable_cores']} cores and {mach['ram_gib']:.0f} GiB (the CPU has "
+             f"{mach['isa']['cpu']}), Python {mach['python']}, torch {mach['torch']} on "
+             f"{threads} thread{'' if threads == 1 else 's'}, {libs}; the simulated recording has "
+             f"{report['recording']['samples']:,} samples at {report['recording']['fs_hz']:g} Hz. "
+             f"Committed as `{BENCHMARK_RUN.as_posix()}`.", "",
+             "| figure | " + " | ".join(paths) + " |", "|---|" + "---:|" * len(paths)]
+    for key, label, fmt in BENCHMARK_ROWS:
+        cells = [fmt.format(p[key]) if p.get(key) is not None else "—" for p in paths.values()]
+        lines.append(f"| {label} | " + " | ".join(cells) + " |")
+    ratios = {name: p.get("predict_gemm_over_library_conv") for name, p in paths.items()}
+    if all(r is not None for r in ratios.values()):
+        faster = [name for name, r in ratios.items() if r < 1.0]
+        verdict = ("faster on every path" if len(faster) == len(ratios) else
+                   "faster on no path" if not faster else "faster only on " + ", ".join(faster))
+        lines += ["", "`predict` with the package's matrix-product convolutions took "
+                  + " and ".join(f"{r:.2f} times the time of torch's own convolutions on the "
+                                 f"{name} path" for name, r in ratios.items())
+                  + f": below 1 the package's are faster, so in this run they were {verdict}."]
+    return "\n".join(lines)
+
+
+def _minutes(seconds: float) -> str:
+    minutes, rest = divmod(round(seconds), 60)
+    return f"{minutes} min {rest} s" if minutes else f"{rest} s"
+
+
+def timings_markdown(commands: Mapping[str, Any], records: Sequence[tuple[str, Mapping[str, Any]]],
+                     report: Mapping[str, Any]) -> str:
+    """The table of how long the project's commands take: the fresh-clone CI run
+    (``commands``, see :data:`COMMANDS_RUN`), the book's last cold and warm runs (the chapters'
+    execution ``records``) and the benchmark run (``report``)."""
+    def total(key: str) -> str:
+        kept = [r.get(key) for _, r in records]
+        if not kept or any(k is None for k in kept):
+            return "not recorded"
+        return _minutes(sum(float(k["seconds"]) for k in kept))
+
+    ci = (f"{commands['date']}, commit {commands['commit']}, {commands['machine']}")
+    tests = f"{commands['tests_passed']} passed, {commands['tests_skipped']} skipped"
+    return "\n".join([
+        "| command | wall time | what it does |",
+        "|---|---:|---|",
+        f"| `.ci/run` from a fresh clone | {_minutes(commands['ci_run_s'])} | `make test`, then "
+        f"`make book` ({ci}) |",
+        f"| `make test` (first run: creates `.venv`) | {_minutes(commands['make_test_s'])} | unit "
+        f"tests and every chapter in fast mode on the real data ({tests}) |",
+        f"| `make book` | {_minutes(commands['make_book_s'])} | renders the stored chapters; "
+        "executes and trains nothing |",
+        f"| `make execute ARGS=\"--all --cold\"` | {total('cold')} | every chapter, every network "
+        "trained anew (the chapters' last cold run) |",
+        f"| `make execute ARGS=--all` | {total('warm')} | every chapter with every network in the "
+        "cache (the chapters' last warm run) |",
+        f"| one paper epoch over 50,000 windows | {_minutes(report['paper_epoch_50k_s'])} | "
+        f"`make bench`, {_path_name(report['machine'])} |",
+        f"| `make bench` | {_minutes(report['total_wall_s'])} | both instruction-set paths where "
+        "the CPU has AVX-512 |",
+    ])

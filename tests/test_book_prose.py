@@ -44,3 +44,20 @@ def test_glue_records_numbers_and_markdown_for_prose(capsys, monkeypatch):
     assert len(shown) == 1
     assert shown[0].data == "The gain is 0.12; **better** on roll."   # round half to even
     book._RECORDED.clear()
+
+
+def test_show_figure_displays_the_figure_then_its_caption_and_closes_it(monkeypatch):
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    shown = []
+    monkeypatch.setattr("IPython.display.display", lambda obj, **kw: shown.append(obj))
+    fig, ax = plt.subplots()
+    book.show_figure(fig, "Figure 2.3", " The KF's roll against the truth. ")
+    assert shown[0] is fig and isinstance(shown[1], Markdown)
+    assert shown[1].data == "*Figure 2.3 — The KF's roll against the truth.*"
+    assert not plt.fignum_exists(fig.number)
+    with pytest.raises(ValueError, match="'Fig. 2' is not 'Figure N.K'"):
+        book.show_figure(plt.figure(), "Fig. 2", "x")
+    plt.close("all")

@@ -304,7 +304,7 @@ def test_the_explanation_check_finds_a_figure_left_alone(tmp_path):
 
 
 
-# ---- chapter size: the research chapters stay readable in one sitting ------------------------
+# ---- chapter size: every chapter stays readable in one sitting ------------------------------
 
 MAX_WORDS = 2600   # "about 2,500"
 MAX_TABLES = 8
@@ -335,3 +335,191 @@ def test_a_research_chapter_is_at_most_about_2500_words_and_8_tables(path):
     assert words <= MAX_WORDS and tables <= MAX_TABLES, (
         f"{path.name}: {words} words and {tables} tables (at most {MAX_WORDS} and {MAX_TABLES}): "
         "split it into two chapters")
+
+
+MARKDOWN_TABLE = re.compile(r"^\|?\s*:?-{3,}:?\s*(\|\s*:?-{3,}:?\s*)+\|?\s*$", re.M)
+PART_ONE_WORDS, PART_ONE_TABLES = 4000, 10
+
+
+def reader_size(path: Path) -> tuple[int, int]:
+    """The size of a chapter as its reader meets it: words of its Markdown cells and stored
+    Markdown outputs, split on whitespace, without fenced code, HTML tags and comments; tables:
+    every Markdown table and every DataFrame or HTML table shown before the exercises."""
+    words = tables = 0
+    in_exercises = False
+    for cell in _cells(path):
+        texts = (["".join(cell["source"])] if cell["cell_type"] == "markdown" else []) + _markdown_outputs(cell)
+        for text in texts:
+            in_exercises = in_exercises or text.lstrip().startswith("## Exercises")
+            text = re.sub(r"^```.*?^```", " ", text, flags=re.S | re.M)
+            text = re.sub(r"<!--.*?-->|<[^>]+>", " ", text, flags=re.S)
+            words += len(text.split())
+            if not in_exercises:
+                tables += len(MARKDOWN_TABLE.findall(text))
+        if not in_exercises and cell["cell_type"] == "code" and not (
+                {"hide-cell", "hide-output", "remove-output", "remove-cell"} & _tags(cell)):
+            tables += sum("<table" in "".join(o.get("data", {}).get("text/html", ""))
+                          for o in cell.get("outputs", []))
+    return words, tables
+
+
+@pytest.mark.parametrize("path", [p for p in NOTEBOOKS if int(p.name[:2]) < SIZED_FROM], ids=lambda p: p.stem)
+def test_a_tutorial_chapter_is_at_most_4000_words_and_10_tables(path):
+    words, tables = reader_size(path)
+    assert words <= PART_ONE_WORDS and tables <= PART_ONE_TABLES, (
+        f"{path.name}: {words} words and {tables} tables (at most {PART_ONE_WORDS} and {PART_ONE_TABLES})")
+
+
+def test_the_reader_size_counts_markdown_outputs_and_tables_but_not_code(tmp_path):
+    html = {"output_type": "execute_result", "data": {"text/html": ["<table><tr><td>1</td></tr></table>"]}}
+    md_out = {"output_type": "display_data", "data": {"text/markdown": ["Four *words* here <b>now</b>."]}}
+    nb = {"cells": [
+        {"cell_type": "markdown", "metadata": {}, "source": ["# Title\n\n| a | b |\n|---|---:|\n| 1 | 2 |\n"
+                                                             "```python\nx = 1 + 2\n```\n<!-- not counted -->"]},
+        {"cell_type": "code", "metadata": {}, "source": ["df"], "outputs": [html, md_out]},
+        {"cell_type": "code", "metadata": {"tags": ["hide-cell"]}, "source": ["df"], "outputs": [html]},
+        {"cell_type": "markdown", "metadata": {}, "source": ["## Exercises\n\n| x | y |\n|---|---|\n"]},
+    ]}
+    path = tmp_path / "01_probe.ipynb"
+    path.write_text(json.dumps(nb))
+    # words: "# Title" 2 + table 10 ("|" counts) + 5 from the output + exercises 2 + 8
+    assert reader_size(path) == (len("# Title | a | b | |---|---:| | 1 | 2 |".split()) + 5
+                                 + len("## Exercises | x | y | |---|---|".split()), 2)
+
+
+PYTHON_FENCE = re.compile(r"^```python\n(.*?)^```", re.S | re.M)
+
+
+def shown_code_problems(text: str) -> list[str]:
+    """For each ``from danae_lite... import NAME`` or ``import danae_lite...`` in the Python code
+    that Markdown ``text`` shows (fenced ``python`` blocks, which the reader copies but nothing
+    runs), what fails to import: the module or the name."""
+    import importlib
+
+    problems = []
+    for block in PYTHON_FENCE.findall(text):
+        for node in ast.walk(ast.parse(block)):
+            if isinstance(node, ast.ImportFrom) and (node.module or "").split(".")[0] == "danae_lite":
+                targets = [(node.module, alias.name) for alias in node.names]
+            elif isinstance(node, ast.Import):
+                targets = [(alias.name, None) for alias in node.names if alias.name.startswith("danae_lite")]
+            else:
+                continue
+            for module, name in targets:
+                try:
+                    found = importlib.import_module(module)
+                except ImportError:
+                    problems.append(f"no module {module}")
+                    continue
+                if name is not None and not hasattr(found, name):
+                    try:
+                        importlib.import_module(f"{module}.{name}")
+                    except ImportError:
+                        problems.append(f"{module} has no {name}")
+    return problems
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
+def test_code_shown_in_the_prose_imports_what_exists(path):
+    problems = [f"cell {i}: {p}" for i, cell in enumerate(_cells(path))
+                for p in shown_code_problems(markdown_of(cell))]
+    assert not problems, f"{path.name}: code shown to the reader imports what does not exist:\n" + "\n".join(problems)
+
+
+def test_the_shown_code_check_finds_a_wrong_import():
+    text = ("```python\nfrom danae_lite.core.train import predict\nfrom danae_lite import alignment\n"
+            "from danae_lite.core.inference import predict\nimport numpy as np\n```\n"
+            "```bash\nfrom danae_lite import nothing\n```")
+    assert shown_code_problems(text) == ["danae_lite.core.train has no predict",
+                                         "danae_lite has no alignment"]
+
+
+# ---- exercises a student does, figures with captions (Part I so far) ------------------------
+
+FORMATTED = [p for p in NOTEBOOKS if int(p.name[:2]) <= 4]
+"""The chapters whose exercises and figures follow the layout checked below."""
+CAPTION = re.compile(r"\*Figure (\d+)\.(\d+) — \S.*\*", re.S)
+MIN_ALT = 40       # characters of alt text: a sentence, not a word
+
+
+def _tags(cell: dict) -> set[str]:
+    return set(cell.get("metadata", {}).get("tags", []))
+
+
+def _markdown_outputs(cell: dict) -> list[str]:
+    return ["".join(o.get("data", {}).get("text/markdown", "")) for o in cell.get("outputs", [])
+            if "text/markdown" in o.get("data", {})]
+
+
+def figure_problems(path: Path) -> list[str]:
+    """What is wrong with the figures of a chapter: each image output must be followed, in the
+    same cell, by its caption ``*Figure N.K — ...*`` (numbered in order within the chapter), the
+    cell must carry alt text (``metadata.mystnb.image.alt``), and the chapter's prose must refer
+    to each figure by its label."""
+    chapter, number, problems, labels = int(path.name[:2]), 0, [], []
+    cells = _cells(path)
+    for i, cell in enumerate(cells):
+        outputs = cell.get("outputs", [])
+        for k, out in enumerate(outputs):
+            if "image/png" not in out.get("data", {}):
+                continue
+            number += 1
+            label = f"Figure {chapter}.{number}"
+            labels.append(label)
+            following = outputs[k + 1].get("data", {}).get("text/markdown", "") if k + 1 < len(outputs) else ""
+            m = CAPTION.fullmatch("".join(following).strip())
+            if not m or (int(m.group(1)), int(m.group(2))) != (chapter, number):
+                problems.append(f"cell {i}: the figure is not followed by the caption '*{label} — ...*'")
+            alt = cell.get("metadata", {}).get("mystnb", {}).get("image", {}).get("alt", "")
+            if len(alt.strip()) < MIN_ALT:
+                problems.append(f"cell {i}: {label} has no alt text (metadata.mystnb.image.alt)")
+    prose_text = "\n".join(markdown_of(c) + "\n".join(_markdown_outputs(c)) for c in cells
+                           if not (c["cell_type"] == "code" and "image/png" in json.dumps(c.get("outputs", []))))
+    problems += [f"{label} is never referred to in the prose" for label in labels
+                 if not re.search(rf"\b{re.escape(label)}\b", prose_text)]
+    return problems
+
+
+@pytest.mark.parametrize("path", FORMATTED, ids=lambda p: p.stem)
+def test_every_figure_has_a_numbered_caption_alt_text_and_a_reference(path):
+    problems = figure_problems(path)
+    assert not problems, f"{path.name}:\n" + "\n".join(problems)
+
+
+def exercise_problems(path: Path) -> list[str]:
+    """What is wrong with a chapter's exercises: after ``## Exercises`` come only statements and
+    what follows each: ``### Exercise N.K`` → an empty code cell for the student → the solution's
+    code in cells behind a toggle (``hide-cell``) with a visible output → the answer behind a
+    ``<details>`` Solution toggle, with numbers; no code shown in Markdown that nothing runs."""
+    cells = _cells(path)
+    start = next(i for i, c in enumerate(cells) if markdown_of(c).lstrip().startswith("## Exercises"))
+    heads = [i for i, c in enumerate(cells) if c["cell_type"] == "markdown"
+             and EXERCISE.match("".join(c["source"]).lstrip())]
+    problems = [f"cell {i}: code before the first exercise" for i in range(start, heads[0])
+                if cells[i]["cell_type"] == "code"]
+    for n, h in enumerate(heads):
+        name = EXERCISE.match("".join(cells[h]["source"]).lstrip()).group(0).lstrip("# ")
+        body = cells[h + 1:heads[n + 1] if n + 1 < len(heads) else len(cells)]
+        if not body or body[0]["cell_type"] != "code" or "".join(body[0]["source"]).strip():
+            problems.append(f"{name}: not followed by an empty code cell for the student")
+            continue
+        solution = [c for c in body[1:] if c["cell_type"] == "code" and "hide-cell" in _tags(c)]
+        shown = [o for c in solution for o in c.get("outputs", [])
+                 if not o.get("metadata", {}).get("scrapbook")]
+        if not solution or not shown:
+            problems.append(f"{name}: no solution code behind a toggle (hide-cell) with a visible output")
+        answers = ["\n".join(_markdown_outputs(c)) for c in body[1:] if SOLUTION.search(markdown_of(c))]
+        if not answers or not re.search(r"\d", answers[-1]):
+            problems.append(f"{name}: no answer with numbers behind a <details> Solution toggle")
+        if any(PYTHON_FENCE.search(markdown_of(c)) for c in body):
+            problems.append(f"{name}: shows code in Markdown; put it in the solution's code cell")
+        if any(c["cell_type"] == "code" and not ({"hide-cell", "remove-input"} & _tags(c))
+               for c in body[1:]):
+            problems.append(f"{name}: a solution cell the reader sees unfolded")
+    return problems
+
+
+@pytest.mark.parametrize("path", FORMATTED, ids=lambda p: p.stem)
+def test_each_exercise_leaves_the_student_a_cell_and_solves_after_it(path):
+    problems = exercise_problems(path)
+    assert not problems, f"{path.name}:\n" + "\n".join(problems)

@@ -1,6 +1,9 @@
-"""README.md and the Performance page quote the stored chapters through generated blocks
-(danae_lite.pages): the blocks must equal what the stored notebooks give."""
+"""README.md and the Performance page quote the stored chapters, the committed benchmark run and
+the committed CI timings through generated blocks (danae_lite.pages): the blocks must equal what
+those records give, and the pages keep to their size budgets."""
 import json
+import re
+import runpy
 from pathlib import Path
 
 import nbformat
@@ -12,6 +15,12 @@ from danae_lite.execute import chapter_records, toc_chapters
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = ROOT / "notebooks"
 REWRITE = "rewrite it with: python -m danae_lite.execute --pages"
+README_LINES = 130          # the README's budget (150 lines, with room for what comes next)
+PERFORMANCE_WORDS = 1500
+
+
+def _records():
+    return chapter_records([NOTEBOOKS / f"{c}.ipynb" for c in toc_chapters(ROOT)])
 
 
 def test_the_performance_page_shows_the_stored_execution_records():
@@ -19,22 +28,6 @@ def test_the_performance_page_shows_the_stored_execution_records():
     expected = pages.times_markdown(chapter_records(chapters))
     assert pages.block(ROOT / "book" / "performance.md", "chapter-times") == expected, (
         f"book/performance.md: the chapter times differ from the execution records; {REWRITE}")
-
-
-def _quoted_chapters():
-    return [nbformat.read(NOTEBOOKS / f"{c}.ipynb", as_version=4) for c in pages.RESULTS_CHAPTERS]
-
-
-def test_the_readme_quotes_chapters_9_and_10_as_stored():
-    assert pages.block(ROOT / "README.md", "results") == pages.results_markdown(_quoted_chapters()), (
-        f"README.md: the DANAE-res results differ from the stored chapters 9 and 10; {REWRITE}")
-
-
-def test_every_field_of_the_readme_template_is_glued_by_chapters_9_and_10():
-    from danae_lite.book import fields
-    glued = {k for nb in _quoted_chapters() for k in pages.glued_values(nb)}
-    missing = set(fields(pages.RESULTS)) - glued
-    assert not missing, f"fields of pages.RESULTS that chapters 9 and 10 do not glue: {sorted(missing)}"
 
 
 def _notebook(path: Path, seconds: float, trained: int, cached: int, glued=()) -> Path:
@@ -69,14 +62,6 @@ def test_update_block_writes_once_and_the_times_add_up(tmp_path):
     partial = chapter_records([_notebook(tmp_path / "03_c.ipynb", 70.0, 2, 4)])
     assert pages.times_markdown(partial).splitlines()[2] == (
         "| 03_c (stored: 70.0 s, 2 / 4, 2026-11-27 14:00) | — | | | — | | |")
-
-
-def test_glued_values_reads_numbers_text_and_markdown(tmp_path):
-    path = _notebook(tmp_path / "06_x.ipynb", 1.0, 0, 0, glued=[
-        ("ch9_rmse", "text/plain", "0.0232"), ("ch9_wins", "text/plain", "'3 of 4'"),
-        ("ch9_n", "text/plain", "11"), ("ch9_name", "text/markdown", "`vqf`")])
-    values = pages.glued_values(nbformat.read(path, as_version=4))
-    assert values == {"ch9_rmse": 0.0232, "ch9_wins": "3 of 4", "ch9_n": 11, "ch9_name": "`vqf`"}
 
 
 def test_a_page_without_its_markers_or_a_chapter_without_a_record_is_refused(tmp_path):
@@ -166,3 +151,104 @@ def test_stored_outputs_from_the_cold_run_still_state_the_warm_run(tmp_path):
         "*Run time*: the stored outputs of this chapter come from its last run from an "
         "empty network cache (2026-11-27): 11.0 s on the reference machine (2 CPU cores, no GPU) (see "
         "[Performance](../book/performance.md)).")
+
+
+def test_the_benchmark_table_is_the_committed_benchmark_run():
+    report = pages.read_run(ROOT, pages.BENCHMARK_RUN)
+    assert pages.block(ROOT / "book" / "performance.md", "benchmark") == pages.benchmark_markdown(report), (
+        f"book/performance.md: the benchmark table differs from {pages.BENCHMARK_RUN}; {REWRITE}")
+    assert not report["quick"], "the committed benchmark run must be a full run, not --quick"
+
+
+def test_the_readme_and_the_performance_page_show_the_same_timings_from_the_records():
+    expected = pages.timings_markdown(pages.read_run(ROOT, pages.COMMANDS_RUN), _records(),
+                                      pages.read_run(ROOT, pages.BENCHMARK_RUN))
+    for page in (ROOT / "README.md", ROOT / "book" / "performance.md"):
+        assert pages.block(page, "timings") == expected, (
+            f"{page.name}: the timings differ from the committed runs; {REWRITE}")
+
+
+def _report(**overrides):
+    machine = {"cpu_model": "Test CPU", "usable_cores": 2, "ram_gib": 23.5, "python": "3.11.7",
+               "torch": "2.13.0+cpu", "torch_threads_default": 2,
+               "isa": {"cpu": "AVX-512", "torch_capability": "AVX512", "avx2_forced": False},
+               "libraries": {"imufusion": "1.3.3", "vqf": "2.1.2"}}
+    report = {"date": "2026-11-29T06:00:00+00:00", "quick": False, "total_wall_s": 95.4,
+              "machine": machine, "recording": {"samples": 100000, "fs_hz": 100.0},
+              "kf_samples_per_s": 987654.3, "paper_epoch_50k_s": 19.66, "predict_100k_s": 4.789}
+    return report | overrides
+
+
+def test_the_benchmark_table_has_a_column_per_instruction_set_path():
+    native = pages.benchmark_markdown(_report()).splitlines()
+    assert native[0].startswith("Measured on 2026-11-29 by one run of `make bench` (95 s in all) on an "
+                                "Test CPU with 2 cores and 24 GiB (the CPU has AVX-512)")
+    assert "torch 2.13.0+cpu on 2 threads, imufusion 1.3.3, vqf 2.1.2;" in native[0]
+    assert native[2] == "| figure | AVX-512 (native) |"
+    assert native[4] == "| KF (`run_kf`, authors' setting) [samples/s] | 987,654 |"
+    assert "| one paper epoch over 50,000 windows [s] | 19.7 |" in native
+    assert "| Fusion (imufusion, C) [samples/s] | — |" in native           # not measured: a dash
+    avx2_machine = {**_report()["machine"], "isa": {"cpu": "AVX-512", "torch_capability": "AVX2",
+                                                    "avx2_forced": True}}
+    both = pages.benchmark_markdown(_report(avx2_path={"machine": avx2_machine, "kf_samples_per_s": 5.0e5,
+                                                       "paper_epoch_50k_s": 30.04})).splitlines()
+    assert both[2] == "| figure | AVX-512 (native) | AVX2 (forced) |"
+    assert both[3] == "|---|---:|---:|"
+    assert "| one paper epoch over 50,000 windows [s] | 19.7 | 30.0 |" in both
+    assert len(both) == 4 + len(pages.BENCHMARK_ROWS)          # no ratio measured: no sentence
+    ratio = dict(_report(predict_gemm_over_library_conv=0.93),
+                 avx2_path={"machine": avx2_machine, "predict_gemm_over_library_conv": 1.07})
+    assert pages.benchmark_markdown(ratio).splitlines()[-1] == (
+        "`predict` with the package's matrix-product convolutions took 0.93 times the time of "
+        "torch's own convolutions on the AVX-512 (native) path and 1.07 times the time of torch's "
+        "own convolutions on the AVX2 (forced) path: below 1 the package's are faster, so in this "
+        "run they were faster only on AVX-512 (native).")
+    slower = dict(ratio, predict_gemm_over_library_conv=1.2)
+    assert pages.benchmark_markdown(slower).endswith("so in this run they were faster on no path.")
+
+
+def test_the_timings_table_adds_up_the_chapters_and_says_what_is_not_recorded():
+    commands = {"date": "2026-11-29", "commit": "abc1234", "machine": "Test CPU, 2 cores, AVX-512",
+                "ci_run_s": 250, "make_test_s": 244, "make_book_s": 5, "tests_passed": 900,
+                "tests_skipped": 1}
+    cold = {"seconds": 100.0, "executed": "2026-11-29T00:00:00+00:00"}
+    records = [("01_a", {"cold": cold, "warm": {"seconds": 20.4}}),
+               ("02_b", {"cold": {**cold, "seconds": 30.0}, "warm": {"seconds": 10.0}})]
+    rows = pages.timings_markdown(commands, records, _report()).splitlines()
+    assert rows[2] == ("| `.ci/run` from a fresh clone | 4 min 10 s | `make test`, then `make book` "
+                       "(2026-11-29, commit abc1234, Test CPU, 2 cores, AVX-512) |")
+    assert rows[3].startswith("| `make test` (first run: creates `.venv`) | 4 min 4 s |")
+    assert rows[3].endswith("(900 passed, 1 skipped) |")
+    assert rows[4].startswith("| `make book` | 5 s |")
+    assert rows[5].startswith('| `make execute ARGS="--all --cold"` | 2 min 10 s |')
+    assert rows[6].startswith("| `make execute ARGS=--all` | 30 s |")
+    assert rows[7].startswith("| one paper epoch over 50,000 windows | 20 s |")
+    assert rows[8].startswith("| `make bench` | 1 min 35 s |")
+    no_warm = pages.timings_markdown(commands, [("01_a", {"cold": cold})], _report()).splitlines()
+    assert no_warm[6].startswith("| `make execute ARGS=--all` | not recorded |")
+
+
+def test_the_ci_log_gives_the_times_and_counts_or_names_what_it_lacks():
+    parse_log = runpy.run_path(str(ROOT / "benchmarks" / "ci_times.py"))["parse_log"]
+    log = ("real data: DANAE_DATA=/x\n== 12 passed in 3s ==\n"
+           "===== 901 passed, 1 skipped, 3 warnings in 240.1s =====\nmake test: 244 s\n"
+           "build succeeded.\nmake book: 6 s\n")
+    assert parse_log(log) == {"make_test_s": 244, "make_book_s": 6, "tests_passed": 901, "tests_skipped": 1}
+    assert parse_log(log.replace(", 1 skipped", ""))["tests_skipped"] == 0
+    with pytest.raises(ValueError, match="make book"):
+        parse_log(log.replace("make book: 6 s", "make book failed"))
+
+
+def _words(markdown: str) -> int:
+    text = re.sub(r"^```.*?^```", " ", markdown, flags=re.S | re.M)
+    text = re.sub(r"<!--.*?-->|<[^>]+>", " ", text, flags=re.S)
+    return len(text.split())
+
+
+def test_the_readme_and_the_performance_page_keep_to_their_budgets():
+    lines = len((ROOT / "README.md").read_text(encoding="utf-8").splitlines())
+    assert lines <= README_LINES, f"README.md has {lines} lines, over its budget of {README_LINES}"
+    words = _words((ROOT / "book" / "performance.md").read_text(encoding="utf-8"))
+    assert words <= PERFORMANCE_WORDS, (
+        f"book/performance.md has {words} words, over its budget of {PERFORMANCE_WORDS}")
+    assert _words("one two\n```bash\nmake x y z\n```\n<!-- a b -->three <b>four</b>") == 4
