@@ -108,11 +108,15 @@ def _fill_plain(formatter: string.Formatter, text: str, values: dict[str, Any]) 
                          "{name:spec} with a glued name") from None
 
 
-def prose(template: str) -> None:
-    """Display ``template`` as Markdown, its fields filled from the values glued so far (see
-    :func:`fill`). The way a chapter writes a sentence that quotes its own results."""
+def prose(template: str, **values: Any) -> None:
+    """Display ``template`` as Markdown, its fields filled from the values glued so far and from
+    ``values``, each of which is glued first under its name (:func:`glue`), so that the stored
+    outputs keep every quoted value (see :func:`fill`). The way a chapter writes a paragraph
+    that quotes its own results: one call per paragraph, in a cell whose input is hidden."""
     from IPython.display import Markdown, display
 
+    for name, value in values.items():
+        glue(name, value)
     display(Markdown(fill(template.strip("\n"), _RECORDED)))
 
 

@@ -61,3 +61,16 @@ def test_show_figure_displays_the_figure_then_its_caption_and_closes_it(monkeypa
     with pytest.raises(ValueError, match="'Fig. 2' is not 'Figure N.K'"):
         book.show_figure(plt.figure(), "Fig. 2", "x")
     plt.close("all")
+
+
+def test_prose_glues_the_values_it_is_given_and_fills_them(monkeypatch):
+    shown, glued = [], []
+    monkeypatch.setattr("IPython.display.display", lambda obj, **kw: shown.append(obj))
+    monkeypatch.setattr("myst_nb.glue", lambda name, value, display=True: glued.append((name, value, display)))
+    book._RECORDED.clear()
+    book.glue("ch9_earlier", 2)
+    book.prose("{ch9_earlier} then {ch9_new:.1f} and {ch9_word}", ch9_new=0.25, ch9_word=Markdown("*x*"))
+    assert [g[0] for g in glued] == ["ch9_earlier", "ch9_new", "ch9_word"] and not any(g[2] for g in glued)
+    assert shown[-1].data == "2 then 0.2 and *x*"                      # round half to even
+    assert book._RECORDED["ch9_new"] == 0.25
+    book._RECORDED.clear()

@@ -53,6 +53,15 @@ def templates(cell: dict) -> list[str]:
             and node.args and isinstance(node.args[0], ast.Constant)]
 
 
+def prose_keywords(cell: dict) -> set[str]:
+    """The names a code cell's ``prose(template, name=value, ...)`` calls glue themselves."""
+    if cell["cell_type"] != "code" or "prose(" not in "".join(cell["source"]):
+        return set()
+    return {kw.arg for node in ast.walk(ast.parse("".join(cell["source"])))
+            if isinstance(node, ast.Call) and getattr(node.func, "id", None) == "prose"
+            for kw in node.keywords if kw.arg}
+
+
 def markdown_of(cell: dict) -> str:
     """The Markdown a reader sees of a cell as written: a Markdown cell's source, the templates
     of a prose cell, nothing for other cells."""
@@ -215,10 +224,13 @@ def missing_glue_keys(path: Path) -> list[str]:
     glued: set[str] = set()
     missing = []
     for i, c in enumerate(_cells(path)):
+        own = {o.get("metadata", {}).get("scrapbook", {}).get("name") for o in c.get("outputs", [])}
+        # a prose cell may glue its values itself: prose(template, name=value), or glue() calls
+        # above it in the same cell (its stored outputs hold them, the run having succeeded)
+        given = glued | own | prose_keywords(c)
         missing += [f"cell {i}: {name}" for t in templates(c) for name in fields(t)
-                    if name not in glued]
-        glued |= {o.get("metadata", {}).get("scrapbook", {}).get("name")
-                  for o in c.get("outputs", [])}
+                    if name not in given]
+        glued |= own
     return missing
 
 
@@ -235,10 +247,12 @@ def test_the_glue_key_check_finds_a_field_without_output(tmp_path):
         {"cell_type": "code", "source": ["glue('ch9_kept', 1)"], "outputs": [glued]},
         {"cell_type": "code", "source": ['prose(r"""{ch9_kept:.1f} and {ch9_gone}, $x_{t}$.""")'],
          "outputs": []},
+        {"cell_type": "code", "source": ['prose(r"""{ch9_kept} {ch9_own:.2f} {ch9_none}""", ch9_own=1.0)'],
+         "outputs": []},
     ]}
     path = tmp_path / "99_probe.ipynb"
     path.write_text(json.dumps(nb))
-    assert missing_glue_keys(path) == ["cell 1: ch9_gone"]
+    assert missing_glue_keys(path) == ["cell 1: ch9_gone", "cell 2: ch9_none"]
 
 
 def _shows(cell: dict) -> list[str]:
@@ -523,3 +537,59 @@ def exercise_problems(path: Path) -> list[str]:
 def test_each_exercise_leaves_the_student_a_cell_and_solves_after_it(path):
     problems = exercise_problems(path)
     assert not problems, f"{path.name}:\n" + "\n".join(problems)
+
+
+# ---- bookkeeping out of sight (Part I so far) -------------------------------------------------
+
+HIDING = {"remove-input", "hide-input", "hide-cell", "remove-cell"}
+SENTENCE_CALL = re.compile(r"(?<![\w.])(glue|prose|Markdown)\(")
+MAX_LOGIC_LINES = 150
+
+
+def visible_bookkeeping(path: Path) -> list[str]:
+    """'cell N' for each code cell the reader sees (no hiding tag) that builds sentences: it
+    calls ``glue``, ``prose`` or ``Markdown``."""
+    return [f"cell {i}" for i, c in enumerate(_cells(path)) if c["cell_type"] == "code"
+            and not (HIDING & _tags(c)) and SENTENCE_CALL.search("".join(c["source"]))]
+
+
+def logic_lines(path: Path) -> int:
+    """Lines of code, outside prose templates, blank lines and comments, in the cells whose
+    input the book removes or hides (the chapter's bookkeeping)."""
+    total = 0
+    for c in _cells(path):
+        if c["cell_type"] != "code" or not ({"remove-input", "hide-input"} & _tags(c)):
+            continue
+        source = "".join(c["source"])
+        for t in templates(c):
+            source = source.replace(t, "")
+        total += sum(1 for line in source.splitlines() if line.strip() and not line.strip().startswith("#"))
+    return total
+
+
+@pytest.mark.parametrize("path", FORMATTED, ids=lambda p: p.stem)
+def test_no_cell_the_reader_sees_builds_sentences(path):
+    cells = visible_bookkeeping(path)
+    assert not cells, (f"{path.name}: cells without a hiding tag call glue, prose or Markdown (move "
+                       f"the sentence into the section's input-removed cell): {cells}")
+
+
+# chapter 4 keeps section 4.4's yaw analysis (about 100 lines of sentence logic) until it moves
+# to the chapter that checks the paper's yaw claim
+@pytest.mark.parametrize("path", [p for p in FORMATTED if p.stem != "04_reproduce_paper"], ids=lambda p: p.stem)
+def test_the_hidden_sentence_logic_stays_short(path):
+    lines = logic_lines(path)
+    assert lines <= MAX_LOGIC_LINES, f"{path.name}: {lines} lines of logic in hidden cells (at most {MAX_LOGIC_LINES})"
+
+
+def test_the_bookkeeping_check_sees_calls_not_names(tmp_path):
+    nb = {"cells": [
+        {"cell_type": "code", "metadata": {}, "source": ["x = 1\nglue('a', x)"], "outputs": []},
+        {"cell_type": "code", "metadata": {}, "source": ["from danae_lite.book import glue, prose\nplots.glue_x(1)"], "outputs": []},
+        {"cell_type": "code", "metadata": {"tags": ["remove-input"]},
+         "source": ['# a comment\nv = 2\n\nprose(r"""\nline {a}\nline two\n""", a=v)'], "outputs": []},
+    ]}
+    path = tmp_path / "01_probe.ipynb"
+    path.write_text(json.dumps(nb))
+    assert visible_bookkeeping(path) == ["cell 0"]
+    assert logic_lines(path) == 2          # "v = 2" and the prose call around its template
