@@ -31,6 +31,7 @@ COMMANDS_RUN = Path("benchmarks") / "results" / "commands.json"
 """The committed fresh-clone run of ``.ci/run`` whose times the README and the Performance page
 quote (repository-relative; written by ``benchmarks/ci_times.py``)."""
 
+
 def marker_lines(name: str) -> tuple[str, str]:
     """The two lines that enclose the block ``name``."""
     return (f"<!-- begin {name}: written by `python -m danae_lite.execute` from the stored "
