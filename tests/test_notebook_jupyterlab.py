@@ -20,7 +20,7 @@ import pytest
 
 from danae_lite.book import fields
 
-from test_notebook_prose import NOTEBOOKS, templates
+from test_notebook_prose import NOTEBOOKS, markdown_outputs, templates
 
 MYST_ONLY = {
     "a MyST role": re.compile(r"(?<![`\w])\{[a-z][\w:-]*\}`"),
@@ -31,21 +31,15 @@ MYST_ONLY = {
 }
 
 
-def _markdown_outputs(cell: dict) -> list[str]:
-    """The Markdown outputs JupyterLab renders (glue's records carry another MIME type)."""
-    return ["".join(o["data"]["text/markdown"]) for o in cell.get("outputs", [])
-            if "text/markdown" in o.get("data", {})]
-
-
 def raw_markup(path: Path) -> list[str]:
     """'cell N: what' for each piece of MyST-only syntax or unfilled field a reader would see."""
     problems = []
     for i, cell in enumerate(json.loads(path.read_text())["cells"]):
         source = ["".join(cell["source"])] if cell["cell_type"] == "markdown" else []
-        for text in source + _markdown_outputs(cell):
+        for text in source + markdown_outputs(cell):
             problems += [f"cell {i}: {what} {m.group(0).strip()!r}"
                          for what, pattern in MYST_ONLY.items() for m in pattern.finditer(text)]
-        for text in _markdown_outputs(cell):
+        for text in markdown_outputs(cell):
             try:
                 left = fields(text)
             except ValueError as err:
@@ -65,7 +59,7 @@ def prose_cell_problems(path: Path) -> list[str]:
         if templates(cell):
             if "remove-input" not in tags:
                 problems.append(f"cell {i}: a prose cell without the remove-input tag")
-            if len(_markdown_outputs(cell)) != len(templates(cell)):
+            if len(markdown_outputs(cell)) != len(templates(cell)):
                 problems.append(f"cell {i}: a prose cell without its stored Markdown output")
         if ("remove-input" in tags or "hide-input" in tags) and not collapsed:
             problems.append(f"cell {i}: hidden in the book, shown in JupyterLab "

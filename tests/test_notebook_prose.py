@@ -62,6 +62,12 @@ def prose_keywords(cell: dict) -> set[str]:
             for kw in node.keywords if kw.arg}
 
 
+def markdown_outputs(cell: dict) -> list[str]:
+    """The Markdown outputs a reader sees (glue's records carry another MIME type)."""
+    return ["".join(o["data"]["text/markdown"]) for o in cell.get("outputs", [])
+            if "text/markdown" in o.get("data", {})]
+
+
 def markdown_of(cell: dict) -> str:
     """The Markdown a reader sees of a cell as written: a Markdown cell's source, the templates
     of a prose cell, nothing for other cells."""
@@ -362,7 +368,7 @@ def reader_size(path: Path) -> tuple[int, int]:
     words = tables = 0
     in_exercises = False
     for cell in _cells(path):
-        texts = (["".join(cell["source"])] if cell["cell_type"] == "markdown" else []) + _markdown_outputs(cell)
+        texts = (["".join(cell["source"])] if cell["cell_type"] == "markdown" else []) + markdown_outputs(cell)
         for text in texts:
             in_exercises = in_exercises or text.lstrip().startswith("## Exercises")
             text = re.sub(r"^```.*?^```", " ", text, flags=re.S | re.M)
@@ -460,11 +466,6 @@ def _tags(cell: dict) -> set[str]:
     return set(cell.get("metadata", {}).get("tags", []))
 
 
-def _markdown_outputs(cell: dict) -> list[str]:
-    return ["".join(o.get("data", {}).get("text/markdown", "")) for o in cell.get("outputs", [])
-            if "text/markdown" in o.get("data", {})]
-
-
 def figure_problems(path: Path) -> list[str]:
     """What is wrong with the figures of a chapter: each image output must be followed, in the
     same cell, by its caption ``*Figure N.K — ...*`` (numbered in order within the chapter), the
@@ -487,7 +488,7 @@ def figure_problems(path: Path) -> list[str]:
             alt = cell.get("metadata", {}).get("mystnb", {}).get("image", {}).get("alt", "")
             if len(alt.strip()) < MIN_ALT:
                 problems.append(f"cell {i}: {label} has no alt text (metadata.mystnb.image.alt)")
-    prose_text = "\n".join(markdown_of(c) + "\n".join(_markdown_outputs(c)) for c in cells
+    prose_text = "\n".join(markdown_of(c) + "\n".join(markdown_outputs(c)) for c in cells
                            if not (c["cell_type"] == "code" and "image/png" in json.dumps(c.get("outputs", []))))
     problems += [f"{label} is never referred to in the prose" for label in labels
                  if not re.search(rf"\b{re.escape(label)}\b", prose_text)]
@@ -522,7 +523,7 @@ def exercise_problems(path: Path) -> list[str]:
                  if not o.get("metadata", {}).get("scrapbook")]
         if not solution or not shown:
             problems.append(f"{name}: no solution code behind a toggle (hide-cell) with a visible output")
-        answers = ["\n".join(_markdown_outputs(c)) for c in body[1:] if SOLUTION.search(markdown_of(c))]
+        answers = ["\n".join(markdown_outputs(c)) for c in body[1:] if SOLUTION.search(markdown_of(c))]
         if not answers or not re.search(r"\d", answers[-1]):
             problems.append(f"{name}: no answer with numbers behind a <details> Solution toggle")
         if any(PYTHON_FENCE.search(markdown_of(c)) for c in body):
