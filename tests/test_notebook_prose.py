@@ -31,7 +31,7 @@ FIELD = re.compile(r"\{[A-Za-z_]\w*(?:![rsa])?(?::[^{}]*)?\}")
 INLINE_CODE = re.compile(r"`[^`]*`")
 MATH = re.compile(r"\$\$.*?\$\$|\$[^$]+\$", re.S)
 # section and exercise numbers: "## 1.7 Title", "section 6.3", "sections 1.5–1.7", "§2.6",
-# "Exercise 11.3"
+# "Exercise 10.3"
 SECTION = re.compile(r"^#+\s+[\d.]+|(?:[Ss]ections?|[Cc]hapters?|[Ee]xercises?|§)\s*\d+(?:\.\d+)*(?:\s*(?:[–-]|and|,)\s*\d+(?:\.\d+)*)*", re.M)
 LINK_TARGET = re.compile(r"\]\([^)]*\)|<https?://[^>]*>|https?://\S+")
 # a decimal (0.622, 1.3e-3 is written 0.0013 in prose) or an integer carrying a % or ° sign
@@ -326,39 +326,17 @@ def test_the_explanation_check_finds_a_figure_left_alone(tmp_path):
 
 # ---- chapter size: every chapter stays readable in one sitting ------------------------------
 
-MAX_WORDS = 2600   # "about 2,500"
-MAX_TABLES = 8
-SIZED_FROM = 5     # chapters 1-4 follow the paper's own sections (derivation, data, network, tables)
-
-
-def chapter_size(path: Path) -> tuple[int, int, int]:
-    """Words a reader sees (Markdown cells and prose templates, without code blocks or HTML
-    comments), and the tables and figures shown before the exercises."""
-    words = tables = figures = 0
-    in_exercises = False
-    for cell in _cells(path):
-        text = markdown_of(cell)
-        in_exercises = in_exercises or text.lstrip().startswith("## Exercises")
-        text = re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)
-        text = re.sub(r"<!--.*?-->", "", text, flags=re.S)
-        words += len(re.findall(r"[\w{$\\][^\s]*", text))
-        if not in_exercises:
-            kinds = _shows(cell)
-            tables += kinds.count("table")
-            figures += kinds.count("figure")
-    return words, tables, figures
-
-
-@pytest.mark.parametrize("path", [p for p in NOTEBOOKS if int(p.name[:2]) >= SIZED_FROM], ids=lambda p: p.name)
-def test_a_research_chapter_is_at_most_about_2500_words_and_8_tables(path):
-    words, tables, _ = chapter_size(path)
-    assert words <= MAX_WORDS and tables <= MAX_TABLES, (
-        f"{path.name}: {words} words and {tables} tables (at most {MAX_WORDS} and {MAX_TABLES}): "
-        "split it into two chapters")
-
-
 MARKDOWN_TABLE = re.compile(r"^\|?\s*:?-{3,}:?\s*(\|\s*:?-{3,}:?\s*)+\|?\s*$", re.M)
-PART_ONE_WORDS, PART_ONE_TABLES = 4000, 10
+PARTS = {"I": range(1, 5), "II": range(5, 7), "III": range(7, 11)}
+"""The book's three parts by chapter number: the tutorial, checking the paper, beyond the paper."""
+PART_LIMITS = {"I": (4000, 10), "II": (2500, 8), "III": (2500, 8)}
+"""Words and tables (before the exercises) a chapter of each part may show its reader."""
+
+
+def part_of(path: Path) -> str:
+    """The part ('I', 'II' or 'III') a chapter belongs to, from its number."""
+    number = int(path.name[:2])
+    return next(part for part, numbers in PARTS.items() if number in numbers)
 
 
 def reader_size(path: Path) -> tuple[int, int]:
@@ -383,11 +361,17 @@ def reader_size(path: Path) -> tuple[int, int]:
     return words, tables
 
 
-@pytest.mark.parametrize("path", [p for p in NOTEBOOKS if int(p.name[:2]) < SIZED_FROM], ids=lambda p: p.stem)
-def test_a_tutorial_chapter_is_at_most_4000_words_and_10_tables(path):
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
+def test_a_chapter_fits_the_size_of_its_part(path):
     words, tables = reader_size(path)
-    assert words <= PART_ONE_WORDS and tables <= PART_ONE_TABLES, (
-        f"{path.name}: {words} words and {tables} tables (at most {PART_ONE_WORDS} and {PART_ONE_TABLES})")
+    max_words, max_tables = PART_LIMITS[part_of(path)]
+    assert words <= max_words and tables <= max_tables, (
+        f"{path.name} (part {part_of(path)}): {words} words and {tables} tables "
+        f"(at most {max_words} and {max_tables})")
+
+
+def test_every_chapter_belongs_to_a_part():
+    assert [part_of(p) for p in NOTEBOOKS] == sorted(part_of(p) for p in NOTEBOOKS)
 
 
 def test_the_reader_size_counts_markdown_outputs_and_tables_but_not_code(tmp_path):
@@ -456,8 +440,9 @@ def test_the_shown_code_check_finds_a_wrong_import():
 
 # ---- exercises a student does, figures with captions (Part I so far) ------------------------
 
-FORMATTED = [p for p in NOTEBOOKS if int(p.name[:2]) <= 4]
-"""The chapters whose exercises and figures follow the layout checked below."""
+FORMATTED = [p for p in NOTEBOOKS if part_of(p) in ("I", "II")]
+"""The chapters whose exercises, figures and bookkeeping follow the layout checked below
+(Parts I and II)."""
 CAPTION = re.compile(r"\*Figure (\d+)\.(\d+) — \S.*\*", re.S)
 MIN_ALT = 40       # characters of alt text: a sentence, not a word
 
@@ -540,7 +525,7 @@ def test_each_exercise_leaves_the_student_a_cell_and_solves_after_it(path):
     assert not problems, f"{path.name}:\n" + "\n".join(problems)
 
 
-# ---- bookkeeping out of sight (Part I so far) -------------------------------------------------
+# ---- bookkeeping out of sight (Parts I and II so far) -------------------------------------------------
 
 HIDING = {"remove-input", "hide-input", "hide-cell", "remove-cell"}
 SENTENCE_CALL = re.compile(r"(?<![\w.])(glue|prose|Markdown)\(")

@@ -2,6 +2,7 @@
 the committed CI timings through generated blocks (danae_lite.pages): the blocks must equal what
 those records give, and the pages keep to their size budgets."""
 import json
+import re
 import runpy
 from pathlib import Path
 
@@ -245,3 +246,40 @@ def test_the_readme_and_the_performance_page_keep_to_their_budgets():
     words = len((ROOT / "book" / "performance.md").read_text(encoding="utf-8").split())
     assert words <= PERFORMANCE_WORDS, (
         f"book/performance.md has {words} words, over its budget of {PERFORMANCE_WORDS}")
+
+
+# ---- the Verdicts page: one table, its values read from the chapters' stored outputs --------
+
+CROSS_GLUE = re.compile(r"\{glue:text\}`\.\./notebooks/([\w]+)\.ipynb::(\w+)(?::[^`]*)?`")
+
+
+def glued_names(path: Path) -> set[str]:
+    """The names a chapter's stored outputs glue (myst-nb's records)."""
+    nb = nbformat.read(path, as_version=4)
+    return {o.get("metadata", {}).get("scrapbook", {}).get("name") for c in nb.cells
+            if c.cell_type == "code" for o in c.get("outputs", [])} - {None}
+
+
+def missing_verdict_values(page: Path) -> list[str]:
+    """'CHAPTER::KEY' for each value the page quotes that the chapter's stored outputs lack."""
+    refs = CROSS_GLUE.findall(page.read_text(encoding="utf-8"))
+    chapters = {stem: glued_names(ROOT / "notebooks" / f"{stem}.ipynb") for stem, _ in refs
+                if (ROOT / "notebooks" / f"{stem}.ipynb").exists()}
+    return [f"{stem}::{key}" for stem, key in refs if key not in chapters.get(stem, set())]
+
+
+def test_the_verdicts_page_quotes_values_the_chapters_store():
+    page = ROOT / "book" / "verdicts.md"
+    assert len(CROSS_GLUE.findall(page.read_text(encoding="utf-8"))) >= 20
+    assert missing_verdict_values(page) == []
+
+
+def test_the_verdicts_check_finds_a_value_no_chapter_stores(tmp_path):
+    page = tmp_path / "verdicts.md"
+    page.write_text("| a | {glue:text}`../notebooks/04_reproduce_paper.ipynb::ch4_red_roll:.1f` % |\n"
+                    "| b | {glue:text}`../notebooks/04_reproduce_paper.ipynb::no_such_value:.1f` |\n")
+    assert missing_verdict_values(page) == ["04_reproduce_paper::no_such_value"]
+
+
+def test_the_verdicts_page_is_in_the_table_of_contents():
+    assert "file: book/verdicts" in (ROOT / "_toc.yml").read_text()

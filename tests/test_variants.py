@@ -101,7 +101,7 @@ def test_selected_variant_is_chosen_on_validation_blocks_only():
 
 
 def test_research_budget_caps_steps_and_tiles_validation():
-    """Chapters 8-10's networks validate on windows window - loss_start apart; DANAE-res's
+    """Chapters 7-9's networks validate on windows window - loss_start apart; DANAE-res's
     (capped) score at most RESEARCH_SCORED_SAMPLES window samples, batch x (window -
     loss_start) per step (a smaller step cap, fast mode's, wins), with RESEARCH_CHECKS checks;
     the variants keep the context's epoch. The step counts are worked out by hand."""

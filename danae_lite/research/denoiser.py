@@ -2,7 +2,7 @@
 
 The paper's DANAE rebuilds every angle from a bottleneck, in raw radians: it learns the
 *level* of the training angles as much as their noise, adds error behind a good filter and
-does not travel to another motion (chapter 8). DANAE-res changes what is learned, not the
+does not travel to another motion (chapter 7). DANAE-res changes what is learned, not the
 networks or the training loop (:func:`danae_lite.core.networks.train_networks`):
 
 * **Residual target.** The network predicts the filter's error ``truth - filter`` (roll,
@@ -129,7 +129,7 @@ class DanaeRes(Method):
     source : leaderboard filter whose output is corrected ("vqf", "fusion", "paper_kf", ...).
     inputs : ``"multi"`` (default) or ``"angles"``.
     residual : predict the filter's error (default). ``False`` (ablation): predict the angles
-        themselves, standardised, as chapter 8's variants do, and output them (the gate then
+        themselves, standardised, as chapter 7's variants do, and output them (the gate then
         blends filter and network output).
     offset_rad : amplitude of the level augmentation [rad] (0 turns it off); default 0.3.
     gate : choose each angle's gain on held-out training data (default); ``False``: gain 1.

@@ -4,11 +4,11 @@
   target jumps by 2π (:data:`ANGLE_CHANNELS`).
 * :func:`multi_input`: the 11 channels of :data:`MULTI_CHANNELS` (a filter's angles, the
   accelerometer's tilt, the tilt-compensated magnetic heading, the Euler rates of the gyro).
-* :data:`CAUSAL_SETTINGS`: the causal network of chapter 8 (the DANAE variant
+* :data:`CAUSAL_SETTINGS`: the causal network of chapter 7 (the DANAE variant
   :func:`danae_lite.research.variants.causal_variant` and DANAE-res, :mod:`danae_lite.research.denoiser`).
 * :data:`RES_SETTINGS`: DANAE-res's network, the causal one on 128-sample windows.
-* :func:`research_config` and :data:`RESEARCH_SCORED_SAMPLES`: how the networks of chapters 8
-  to 10 are validated, and DANAE-res's training budget.
+* :func:`research_config` and :data:`RESEARCH_SCORED_SAMPLES`: how the networks of chapters 7
+  to 9 are validated, and DANAE-res's training budget.
 * :func:`run_network`: a trained network over a whole recording, causal or not.
 
 Used by :mod:`danae_lite.research.variants` and :mod:`danae_lite.research.denoiser`.
@@ -72,7 +72,7 @@ def research_steps(cfg: TrainConfig) -> int:
 
 
 def research_config(base: TrainConfig, seed: int, *, capped: bool, **overrides: Any) -> TrainConfig:
-    """Training settings of a research network (chapters 5-10: the variants, DANAE-res and the
+    """Training settings of a research network (chapters 5-9: the variants, DANAE-res and the
     leaderboard's paper DANAE): ``base`` (the context's settings:
     device, fast-mode cap) with ``overrides`` and the seed, validated on windows
     ``window - loss_start`` apart (every validation sample scored once instead of up to

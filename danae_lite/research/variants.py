@@ -163,7 +163,7 @@ class Selected(Method):
 
 
 # ---------------------------------------------------------------------------------------
-# the experiments of chapter 8, defined once for the book and the scripts
+# the experiments of chapter 7, defined once for the book and the scripts
 # ---------------------------------------------------------------------------------------
 FILTER_SOURCES: tuple[str, ...] = ("paper_kf", "tuned_kf", "fusion", "vqf", "madgwick")
 """Filters whose output DANAE is trained on in the filter-agnostic study."""
