@@ -147,3 +147,15 @@ def test_the_papers_danae_lists_the_networks_its_fit_trains(tmp_path):
     # validated on windows that tile the tails (the research networks' way) unless told otherwise
     assert {j.config.val_stride for j in jobs} == {20}
     assert {j.config.val_stride for j in Danae(val_stride=1).network_jobs(ctx)} == {1}
+
+
+def test_seed_rmse_gives_each_seeds_rmse_and_their_mean_is_the_tables(board):
+    rec = board.experiment.test[0]
+    per_seed = [metrics.metric_table(p, rec.euler).loc["rmse", "pitch"] for p in board.predictions["danae"][rec.name]]
+    np.testing.assert_allclose(board.seed_rmse("danae", "pitch", "all"), per_seed, rtol=1e-12)
+    for m in ("danae", "vqf"):
+        row = board.table[(board.table.method == m) & (board.table.samples == "clean") & (board.table.angle == "roll")]
+        assert board.seed_rmse(m, "roll").mean() == pytest.approx(float(row.rmse.iloc[0]), rel=1e-12)
+    assert len(board.seed_rmse("vqf", "roll")) == 1 and len(board.seed_rmse("danae", "roll")) == 2
+    with pytest.raises(ValueError, match="choose 'clean' or 'all'"):
+        board.seed_rmse("vqf", "roll", "some")

@@ -101,7 +101,7 @@ def test_selected_variant_is_chosen_on_validation_blocks_only():
 
 
 def test_research_budget_caps_steps_and_tiles_validation():
-    """Chapters 7-9's networks validate on windows window - loss_start apart; DANAE-res's
+    """Part III's networks validate on windows window - loss_start apart; DANAE-res's
     (capped) score at most RESEARCH_SCORED_SAMPLES window samples, batch x (window -
     loss_start) per step (a smaller step cap, fast mode's, wins), with RESEARCH_CHECKS checks;
     the variants keep the context's epoch. The step counts are worked out by hand."""
@@ -125,3 +125,15 @@ def test_research_budget_caps_steps_and_tiles_validation():
     for method, steps in ((DanaeOn("vqf"), None), (DanaeRes("vqf"), 520)):
         method.ctx = type("Ctx", (), {"train_config": TrainConfig(epochs=1)})()
         assert method.config(0).max_steps == steps
+
+
+def test_generalisation_gives_each_seeds_difference_to_the_filter():
+    from danae_lite.research.variants import generalisation
+
+    recs = [simulate("handheld", duration=12.0, seed=s, name=f"g-{s}") for s in range(2)]
+    scen = {"a": Experiment("oxiod", "simulated", recs[1:], recs[:1], "a")}
+    gen = generalisation(scen, sources=("paper_kf",), seeds=(0, 1),
+                         train_config=TrainConfig(max_steps=2, num_threads=1))
+    assert len(gen) == 3 and all(len(d) == 2 for d in gen.danae_minus_filter)
+    for _, row in gen.iterrows():   # the mean of the per-seed differences is DANAE's RMSE minus the filter's
+        assert np.mean(row.danae_minus_filter) == pytest.approx(row.danae_rmse - row.filter_rmse, rel=1e-9)

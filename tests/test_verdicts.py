@@ -1,7 +1,8 @@
 """The wording rule for differences over seeds or recordings (danae_lite.research.verdicts)."""
 import pytest
 
-from danae_lite.research.verdicts import MIN_DRAWS, difference_holds, difference_phrase
+from danae_lite.research.verdicts import (MIN_DRAWS, difference_holds, difference_phrase, group_by_verdict,
+                                          join_grouped, join_labels)
 
 
 def test_a_difference_larger_than_its_spread_holds_in_either_direction():
@@ -31,3 +32,27 @@ def test_bad_differences_are_refused_with_what_was_expected():
         difference_holds([[0.1, 0.2]])
     with pytest.raises(ValueError, match="finite"):
         difference_holds([0.1, float("nan"), 0.2])
+
+
+def test_group_by_verdict_sorts_labels_by_the_rule_in_their_order():
+    diffs = {"helps": [0.30, 0.31, 0.29], "costs": [-0.5, -0.4, -0.45], "noisy": [0.3, -0.2, 0.1],
+             "two draws": [0.3, 0.3], "also helps": [1.0, 1.0, 1.0]}
+    assert group_by_verdict(diffs) == {"above": ["helps", "also helps"], "below": ["costs"],
+                                       "within": ["noisy", "two draws"]}
+    assert group_by_verdict({}) == {"above": [], "below": [], "within": []}
+
+
+def test_join_labels_writes_an_english_list():
+    assert join_labels([]) == "none" and join_labels([], empty="no filter") == "no filter"
+    assert join_labels(["a"]) == "a"
+    assert join_labels(["a", "b"]) == "a and b"
+    assert join_labels(["a", "b", "c"]) == "a, b and c"
+
+
+def test_join_grouped_names_each_subject_once_with_its_details():
+    pairs = [("VQF", "roll"), ("Fusion", "roll"), ("VQF", "pitch")]
+    assert join_grouped(pairs) == "VQF (roll, pitch) and Fusion (roll)"
+    assert join_grouped([], empty="no filter") == "no filter"
+    # group_by_verdict keeps tuple labels, so the two compose
+    by = group_by_verdict({("VQF", "roll"): [0.3, 0.31, 0.29], ("VQF", "pitch"): [0.2, 0.21, 0.2]})
+    assert join_grouped(by["above"]) == "VQF (roll, pitch)"

@@ -10,8 +10,8 @@ Three architectures, all mapping a window ``(batch, in_channels, L)`` to
 * :class:`DanaeBig` -- the deeper network the authors switched to after the paper
   (``GeneratorBIG``, also used by DANAE++), with a ``128 x 1`` bottleneck. Not the paper's.
 * :class:`DanaeCausal` -- not from the authors: a causal dilated temporal-convolution
-  network whose output sample ``t`` depends only on inputs up to ``t`` (31 samples back by
-  default), so it can run on-line, one sample at a time (:mod:`danae_lite.research.streaming`).
+  network whose output sample ``t`` depends only on inputs up to ``t`` (by default the 31 samples
+  ``t-30 ... t``), so it can run on-line, one sample at a time (:mod:`danae_lite.research.streaming`).
 
 The authors' two networks use 128 channels, 1-D kernels of size 3 (the paper's "3x3
 kernels"), biases, ReLU after every layer except the last one, and no normalisation layers.

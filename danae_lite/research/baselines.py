@@ -428,7 +428,7 @@ class Danae(_OnPaperKF):
         :func:`~danae_lite.core.pipeline.reproduce`).
     val_stride : step between its validation windows [samples]; default None: windows that
         tile the validation tails (the window length apart, each validation sample scored once,
-        as every network of chapters 7-8: :func:`~danae_lite.research.features.research_config`);
+        as every network of Part III: :func:`~danae_lite.research.features.research_config`);
         1 for every window, the paper's recipe (chapter 4's
         :func:`~danae_lite.core.pipeline.reproduce`). The training itself is the same; the
         validation loss, and so the checkpoint kept, is estimated with a tenth to a twentieth

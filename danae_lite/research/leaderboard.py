@@ -45,7 +45,7 @@ from ..core.networks import NetworkJob, pretrain
 from .methods import Context, Method
 from ..core.recording import Recording
 from .registry import METHODS, is_method_name, make_method
-from ..core.scoring import SUBSETS, plain, score_rows
+from ..core.scoring import SUBSETS, plain, score_rows, seed_metrics
 from ..core.train import TrainConfig
 
 if TYPE_CHECKING:
@@ -94,6 +94,21 @@ class Leaderboard:
         if not learned:
             w = w.drop(index=[m for m in w.index if m.startswith("danae")])
         return str(w[angle].astype(float).idxmin())
+
+    def seed_rmse(self, name: str, angle: str, samples: str = "clean") -> NDArray[np.float64]:
+        """Method ``name``'s RMSE [rad] of ``angle`` on every test recording taken together, one
+        value per seed (a filter has one; the mean is the ``rmse`` of :attr:`table`), on the
+        ``samples`` "clean" or "all"; the spread a verdict over seeds is drawn from."""
+        if samples not in ("clean", "all"):
+            raise ValueError(f"samples={samples!r}: choose 'clean' or 'all'")
+        k = ANGLES.index(angle)
+        test = self.experiment.test
+        truth = np.concatenate([r.euler[:, k] for r in test])
+        sel = np.concatenate([self.clean[r.name] if samples == "clean" else np.ones(len(r), dtype=bool)
+                              for r in test])
+        n_seeds = len(self.predictions[name][test[0].name])
+        joined = [np.concatenate([self.predictions[name][r.name][s][:, k] for r in test]) for s in range(n_seeds)]
+        return np.array([s["rmse"] for s in seed_metrics(joined, truth, angle, sel)])
 
     def trial_metrics(self) -> pd.DataFrame:
         """The BROAD benchmark's figures per method and test recording (:data:`TRIAL_COLUMNS`):

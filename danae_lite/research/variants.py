@@ -214,7 +214,9 @@ def generalisation(scenarios: dict[str, Any], *, sources: tuple[str, ...] = ("pa
     test) pair, the filters in ``sources`` and ``DanaeOn(source)`` are fitted on the training
     side and evaluated on the test side (clean samples). Returns one row per pair, source and
     angle: the filter's RMSE, DANAE's RMSE (mean over seeds) and the gain [%]
-    ``100 (1 - danae / filter)``; negative gain = the learned correction hurts. ``jobs``: worker
+    ``100 (1 - danae / filter)``; negative gain = the learned correction hurts;
+    ``danae_minus_filter``: DANAE's RMSE minus the filter's, one per seed [rad] (a tuple, for
+    :mod:`~danae_lite.research.verdicts`). ``jobs``: worker
     processes for each pair's networks (:func:`~danae_lite.research.leaderboard.run_leaderboard`).
     """
     rows = []
@@ -227,6 +229,7 @@ def generalisation(scenarios: dict[str, Any], *, sources: tuple[str, ...] = ("pa
             for s in sources:
                 for angle in ("roll", "pitch", "yaw"):
                     f, d = float(w.loc[s, angle]), float(w.loc[f"danae[{s}]", angle])
+                    diffs = tuple(board.seed_rmse(f"danae[{s}]", angle) - f)
                     rows.append({"train": a, "test": b, "source": s, "angle": angle, "filter_rmse": f,
-                                 "danae_rmse": d, "gain_pct": reduction_pct(d, f)})
+                                 "danae_rmse": d, "gain_pct": reduction_pct(d, f), "danae_minus_filter": diffs})
     return pd.DataFrame(rows)

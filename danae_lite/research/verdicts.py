@@ -8,7 +8,8 @@ sentence, so the reader sees what the verdict rests on.
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
+from typing import Any
 
 import numpy as np
 
@@ -41,3 +42,31 @@ def difference_phrase(diffs: Sequence[float], *, above: str, below: str, unit: s
     return (f"within the spread of its {d.size} {counted} ({mean:+.{digits}f} {unit} against a "
             f"range of {spread:.{digits}f} {unit}; a difference holds when its mean exceeds "
             f"that range over at least {MIN_DRAWS} {draws})")
+
+
+def group_by_verdict(diffs: Mapping[Any, Sequence[float]]) -> dict[str, list[Any]]:
+    """The labels of ``diffs`` (label -> per-draw differences a - b) sorted by verdict, in their
+    order: ``"above"`` (the difference holds and is positive), ``"below"`` (it holds and is
+    negative) and ``"within"`` (it does not hold: within the spread of its draws)."""
+    out: dict[str, list[Any]] = {"above": [], "below": [], "within": []}
+    for label, d in diffs.items():
+        kind = "within" if not difference_holds(d) else "above" if float(np.mean(d)) > 0 else "below"
+        out[kind].append(label)
+    return out
+
+
+def join_labels(labels: Sequence[str], empty: str = "none") -> str:
+    """``labels`` as an English list ("a", "a and b", "a, b and c"); ``empty`` when there are none."""
+    if not labels:
+        return empty
+    return labels[0] if len(labels) == 1 else f"{', '.join(labels[:-1])} and {labels[-1]}"
+
+
+def join_grouped(pairs: Sequence[tuple[str, str]], empty: str = "none") -> str:
+    """``(subject, detail)`` pairs as an English list with each subject once, its details in
+    brackets in their order: ``[("VQF", "roll"), ("VQF", "pitch"), ("Fusion", "roll")]`` ->
+    "VQF (roll, pitch) and Fusion (roll)"; ``empty`` when there are none."""
+    grouped: dict[str, list[str]] = {}
+    for subject, detail in pairs:
+        grouped.setdefault(subject, []).append(detail)
+    return join_labels([f"{s} ({', '.join(d)})" for s, d in grouped.items()], empty)
