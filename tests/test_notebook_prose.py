@@ -327,7 +327,7 @@ def test_the_explanation_check_finds_a_figure_left_alone(tmp_path):
 # ---- chapter size: every chapter stays readable in one sitting ------------------------------
 
 MARKDOWN_TABLE = re.compile(r"^\|?\s*:?-{3,}:?\s*(\|\s*:?-{3,}:?\s*)+\|?\s*$", re.M)
-PARTS = {"I": range(1, 5), "II": range(5, 7), "III": range(7, 10)}
+PARTS = {"I": range(1, 5), "II": range(5, 7), "III": range(7, 9)}
 """The book's three parts by chapter number: the tutorial, checking the paper, beyond the paper."""
 PART_LIMITS = {"I": (4000, 10), "II": (2500, 8), "III": (2500, 8)}
 """Words and tables (before the exercises) a chapter of each part may show its reader."""
@@ -438,11 +438,11 @@ def test_the_shown_code_check_finds_a_wrong_import():
                                          "danae_lite has no alignment"]
 
 
-# ---- exercises a student does, figures with captions (Part I so far) ------------------------
+# ---- exercises a student does, figures with captions ------------------------------------------
 
-FORMATTED = [p for p in NOTEBOOKS if part_of(p) in ("I", "II") or p.name.startswith("07_")]
-"""The chapters whose exercises, figures and bookkeeping follow the layout checked below
-(Parts I and II)."""
+FORMATTED = NOTEBOOKS
+"""The chapters whose exercises, figures and bookkeeping follow the layout checked below:
+every chapter."""
 CAPTION = re.compile(r"\*Figure (\d+)\.(\d+) — \S.*\*", re.S)
 MIN_ALT = 40       # characters of alt text: a sentence, not a word
 
@@ -525,7 +525,7 @@ def test_each_exercise_leaves_the_student_a_cell_and_solves_after_it(path):
     assert not problems, f"{path.name}:\n" + "\n".join(problems)
 
 
-# ---- bookkeeping out of sight (Parts I and II so far) -------------------------------------------------
+# ---- bookkeeping out of sight ---------------------------------------------------------------------
 
 HIDING = {"remove-input", "hide-input", "hide-cell", "remove-cell"}
 SENTENCE_CALL = re.compile(r"(?<![\w.])(glue|prose|Markdown)\(")

@@ -60,7 +60,7 @@ def test_causal_variant_never_reads_future_samples(board):
     rec = board.experiment.test[0]
     aligned = board.alignment.apply(rec)
 
-    x = m._features(aligned)
+    x = m.features(aligned)
     res = m.results[0]
     y = predict_causal(res, x)
     x2 = x.copy()

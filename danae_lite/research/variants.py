@@ -71,7 +71,9 @@ class DanaeOn(Method):
     def _channels(self) -> tuple[str, ...]:
         return MULTI_CHANNELS if self.inputs == "multi" else ANGLE_CHANNELS
 
-    def _features(self, rec: Recording) -> Array:
+    def features(self, rec: Recording) -> Array:
+        """Input channels (N, C) of the aligned recording ``rec``: the source's angles on the circle
+        (``inputs="angles"``) or the multi-input channels [rad, rad/s]."""
         (est,) = self.base.predict(rec)[:1]
         if self.inputs == "multi":
             return multi_input(rec, est, self.ctx.alignment.north_yaw)
@@ -90,7 +92,7 @@ class DanaeOn(Method):
             raise ValueError("a DANAE variant cannot take DANAE's own output as its source")
         self.ctx = ctx
         self.base = ctx.method(self.source)
-        return {"inputs": {"joint": [self._features(r) for r in ctx.train]},
+        return {"inputs": {"joint": [self.features(r) for r in ctx.train]},
                 "targets": {"joint": [to_circle(r.euler) for r in ctx.train]},
                 "config": self.config(ctx.seeds[0]), "seeds": ctx.seeds,
                 "masks": [ctx.clean[r.name] for r in ctx.train], "tag": "variant",
@@ -109,7 +111,7 @@ class DanaeOn(Method):
         return self
 
     def predict(self, rec: Recording) -> list[Array]:
-        x = self._features(rec)
+        x = self.features(rec)
         out = []
         for seed in self.ctx.seeds:
             out.append(from_circle(run_network(self.results[int(seed)], x)))
