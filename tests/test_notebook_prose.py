@@ -560,9 +560,7 @@ def test_no_cell_the_reader_sees_builds_sentences(path):
                        f"the sentence into the section's input-removed cell): {cells}")
 
 
-# chapter 4 keeps section 4.4's yaw analysis (about 100 lines of sentence logic) until it moves
-# to the chapter that checks the paper's yaw claim
-@pytest.mark.parametrize("path", [p for p in FORMATTED if p.stem != "04_reproduce_paper"], ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", FORMATTED, ids=lambda p: p.stem)
 def test_the_hidden_sentence_logic_stays_short(path):
     lines = logic_lines(path)
     assert lines <= MAX_LOGIC_LINES, f"{path.name}: {lines} lines of logic in hidden cells (at most {MAX_LOGIC_LINES})"
