@@ -440,9 +440,6 @@ def test_the_shown_code_check_finds_a_wrong_import():
 
 # ---- exercises a student does, figures with captions ------------------------------------------
 
-FORMATTED = NOTEBOOKS
-"""The chapters whose exercises, figures and bookkeeping follow the layout checked below:
-every chapter."""
 CAPTION = re.compile(r"\*Figure (\d+)\.(\d+) — \S.*\*", re.S)
 MIN_ALT = 40       # characters of alt text: a sentence, not a word
 
@@ -480,7 +477,7 @@ def figure_problems(path: Path) -> list[str]:
     return problems
 
 
-@pytest.mark.parametrize("path", FORMATTED, ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
 def test_every_figure_has_a_numbered_caption_alt_text_and_a_reference(path):
     problems = figure_problems(path)
     assert not problems, f"{path.name}:\n" + "\n".join(problems)
@@ -519,7 +516,7 @@ def exercise_problems(path: Path) -> list[str]:
     return problems
 
 
-@pytest.mark.parametrize("path", FORMATTED, ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
 def test_each_exercise_leaves_the_student_a_cell_and_solves_after_it(path):
     problems = exercise_problems(path)
     assert not problems, f"{path.name}:\n" + "\n".join(problems)
@@ -553,14 +550,14 @@ def logic_lines(path: Path) -> int:
     return total
 
 
-@pytest.mark.parametrize("path", FORMATTED, ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
 def test_no_cell_the_reader_sees_builds_sentences(path):
     cells = visible_bookkeeping(path)
     assert not cells, (f"{path.name}: cells without a hiding tag call glue, prose or Markdown (move "
                        f"the sentence into the section's input-removed cell): {cells}")
 
 
-@pytest.mark.parametrize("path", FORMATTED, ids=lambda p: p.stem)
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
 def test_the_hidden_sentence_logic_stays_short(path):
     lines = logic_lines(path)
     assert lines <= MAX_LOGIC_LINES, f"{path.name}: {lines} lines of logic in hidden cells (at most {MAX_LOGIC_LINES})"
