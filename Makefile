@@ -7,7 +7,7 @@
 #   make execute -> re-executes in place the chapters whose stored outputs are stale (ARGS=--all: every
 #                   chapter; ARGS="--only 03_danae": that one; ARGS=--cold: every network trained anew),
 #                   in full mode on real data, storing the outputs that `make book` renders
-#                   (python -m danae_lite.execute),
+#                   (python -m tools.execute),
 #                   with DANAE_JOBS (default: one worker process per core) parallel trainings and folds.
 #                   It needs DANAE_DATA and refuses to run without it (or in fast mode) unless
 #                   ARGS="--out DIR" writes the executed copies elsewhere.
@@ -41,7 +41,7 @@ book: $(STAMP)
 	@echo "Book written to _build/html/index.html"
 
 execute: $(STAMP)
-	DANAE_JOBS=$${DANAE_JOBS:-$(EXEC_JOBS)} $(BIN)/python -m danae_lite.execute $(ARGS)
+	DANAE_JOBS=$${DANAE_JOBS:-$(EXEC_JOBS)} $(BIN)/python -m tools.execute $(ARGS)
 
 test: $(STAMP)
 	DANAE_FAST=$${DANAE_FAST:-1} OMP_NUM_THREADS=$${OMP_NUM_THREADS:-1} $(BIN)/python -m pytest -n $(JOBS) --dist loadfile --no-loadscope-reorder tests notebooks --nbmake --nbmake-timeout=600

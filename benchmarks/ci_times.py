@@ -7,8 +7,8 @@ repository, so that ``.ci/run`` finds ``../shared/data`` as it does in CI), runs
 there with ``CI=true`` and no standard input, and writes what it printed to ``DIR/ci.log`` and
 its times to ``FILE`` (default ``benchmarks/results/commands.json``): the whole run, ``make test``
 (which creates ``.venv`` first) and ``make book`` in seconds, pytest's counts, the commit and the
-machine. ``danae_lite.pages.timings_markdown`` turns that record into the timings table; run
-``python -m danae_lite.execute --pages`` afterwards. Exits with ``.ci/run``'s status, writing no
+machine. ``tools.pages.timings_markdown`` turns that record into the timings table; run
+``python -m tools.execute --pages`` afterwards. Exits with ``.ci/run``'s status, writing no
 record when it failed.
 """
 from __future__ import annotations

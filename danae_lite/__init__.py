@@ -3,7 +3,8 @@
 Three layers, one folder each; imports run one way only, entry points -> research engine -> core
 (``tests/test_architecture.py`` reads each module's layer from its folder and keeps it so). A new
 module goes into ``core/`` if chapters 1-4 need it, else into ``research/``; only settings,
-chapter setup, execution and the command line sit at the top.
+chapter setup and the command line sit at the top (book maintenance, re-execution and the
+pages' generated blocks, is not part of the package: ``tools/``).
 
 **Core** (``danae_lite/core/``) -- what chapters 1-4 need:
 
@@ -55,8 +56,6 @@ chapter setup, execution and the command line sit at the top.
 
 * :mod:`~danae_lite.config`       the run settings, read from flags and ``DANAE_*`` variables (only here)
 * :mod:`~danae_lite.book`         the common first cell of every chapter (``setup``); ``glue``/``prose``: results in the prose
-* :mod:`~danae_lite.execute`      ``make execute``: re-executes the stale chapters and records each run
-* :mod:`~danae_lite.pages`        the blocks of README.md and the Performance page written from the stored chapters
 * :mod:`~danae_lite.cli`          ``python -m danae_lite reproduce|leaderboard``; :mod:`~danae_lite.cli_data` its data flags -> recordings
 """
 from .core._version import __version__

@@ -4,9 +4,12 @@ It fixes the things every chapter relies on, in one place:
 
 * fast mode (``DANAE_FAST``) — fewer epochs and shorter recordings for CI;
 * the real-data directory (``DANAE_DATA``) — or the simulator when it is absent;
-* the seeds of python, numpy and torch;
-* the plotting style of the book (:mod:`danae_lite.core.plots`);
-* torch's CPU threads: torch's own default (every physical core, or ``OMP_NUM_THREADS``).
+* the seeds of python and numpy (and of torch when the chapter has loaded it; a chapter that
+  trains seeds each network itself, as the library does);
+* the plotting style of the book (:mod:`danae_lite.core.plots`).
+
+It loads no torch: the Kalman-filter chapters run without it. Torch's CPU threads stay torch's
+own default (every physical core, or ``OMP_NUM_THREADS``).
 
 It also holds the two functions through which a chapter puts a number from its run into its
 prose, so that the number reads the same in the HTML book and in JupyterLab:
@@ -22,16 +25,19 @@ so that the HTML book and JupyterLab both show the caption under the figure (its
 the cell's ``mystnb.image.alt`` metadata).
 
 The command that re-executes the chapters and stores their outputs is
-:mod:`danae_lite.execute` (``make execute``); the book only renders those outputs.
+:mod:`tools.execute` (``make execute``); the book only renders those outputs.
 """
 from __future__ import annotations
 
+import random
 import re
 import string
+import sys
 from typing import Any
 
+import numpy as np
+
 from .config import DEFAULT_SEED, RunSettings
-from .core.seeding import seed_everything
 from .research import memo
 
 # values glued by the running chapter, by name (one chapter per kernel; setup() empties it)
@@ -46,19 +52,18 @@ def setup(seed: int = DEFAULT_SEED, *, verbose: bool = True) -> RunSettings:
     from .core import plots
 
     plots.use_style()
-    seed_everything(seed)
+    random.seed(seed)
+    np.random.seed(seed)
+    if "torch" in sys.modules:  # never imported here: chapters 1-2 run without torch
+        sys.modules["torch"].manual_seed(seed)
     _RECORDED.clear()
-    import torch
-
-    # torch's own thread count stands: every physical core, or OMP_NUM_THREADS when set (make
-    # test sets 1 per pytest worker so that two workers never oversubscribe two cores)
     cfg = RunSettings.from_env(seed=seed)
     memo.use_store(cfg.run_store)
     if verbose:
         mode = "FAST (DANAE_FAST=1: reduced steps, data and seeds)" if cfg.fast else "full"
         data = f"{cfg.data_dir}" if cfg.data_dir else "not set (DANAE_DATA unset): the simulator stands in"
         print(f"mode: {mode} | data: {data} | seed: {cfg.seed} | device: {cfg.device} "
-              f"({torch.get_num_threads()} CPU threads, {cfg.jobs} worker process(es))")
+              f"({cfg.jobs} worker process(es))")
     return cfg
 
 

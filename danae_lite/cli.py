@@ -158,6 +158,10 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=PROG,
         description="Reproduce the DANAE paper (KF -> DANAE -> metrics -> figure) from the command line.",
+        epilog=("the book: re-executing its chapters and storing their outputs is book maintenance, not\n"
+                "part of this package: from the repository root, python -m tools.execute (make execute;\n"
+                "--help lists its flags)."),
+        formatter_class=argparse.RawDescriptionHelpFormatter,
     )
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
     rep = sub.add_parser(
@@ -253,7 +257,7 @@ def _add_common(p: argparse.ArgumentParser, command: str) -> None:
     p.add_argument("--fast", action="store_true", default=None,
                      help=f"fast mode: shorter recordings and fewer steps (see below). Default: ${FAST_ENV}, else off")
     p.add_argument("--device", metavar="DEV", default=None,
-                     help="torch device for training, e.g. cpu, cuda, cuda:1. Default: cuda when available, else cpu")
+                     help="torch device for training, e.g. cpu, cuda, cuda:1. Default: cpu")
     p.add_argument("--threads", metavar="N", type=_positive_int, default=None,
                      help="torch CPU threads. Default: torch's own (every physical core, or OMP_NUM_THREADS)")
     p.add_argument("--jobs", metavar="N", type=_positive_int, default=None,
@@ -303,10 +307,8 @@ def _one_line(err: BaseException) -> str:
 def _check_device(device: str | None) -> str:
     import torch
 
-    from .core.seeding import default_device
-
     try:
-        dev = torch.device(default_device(device))
+        dev = torch.device(device or "cpu")
     except (RuntimeError, ValueError) as err:
         raise UsageError(f"--device {device}: not a torch device ({_one_line(err)})") from None
     if dev.type == "cuda" and not torch.cuda.is_available():

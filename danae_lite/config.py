@@ -1,6 +1,6 @@
 """Run-time settings: read from the environment by the entry points only, then passed along.
 
-The entry points (the command line, the book's ``setup()``, ``python -m danae_lite.execute``)
+The entry points (the command line, the book's ``setup()``, ``python -m tools.execute``)
 build one :class:`RunSettings` from their flags and these variables; everything below them
 takes its settings as arguments and never reads the environment.
 
@@ -36,13 +36,14 @@ import os
 from dataclasses import dataclass, field, replace
 from collections.abc import Mapping
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from .core.datasets import existing_dir
-from .core.networks import NetworkCache
-from .core.seeding import default_device
-from .core.train import TrainConfig
-from .research.memo import RunStore
+
+if TYPE_CHECKING:  # imported where used: the settings of the KF chapters load no torch
+    from .core.networks import NetworkCache
+    from .core.train import TrainConfig
+    from .research.memo import RunStore
 
 
 FAST_ENV = "DANAE_FAST"
@@ -129,9 +130,11 @@ def cache_gb(value: float | None = None) -> float:
     return gb
 
 
-def network_cache(root: Path | None, *, fast: bool, max_gb: float = DEFAULT_CACHE_GB) -> NetworkCache | None:
+def network_cache(root: Path | None, *, fast: bool, max_gb: float = DEFAULT_CACHE_GB) -> "NetworkCache | None":
     """The cache of one mode: ``<root>/fast`` or ``<root>/full``, capped at ``max_gb`` GB; None
     without a root."""
+    from .core.networks import NetworkCache
+
     if root is None:
         return None
     return NetworkCache(root / ("fast" if fast else "full"), int(max_gb * 1e9))
@@ -202,10 +205,10 @@ class RunSettings:
     jobs: int = 1
     """Worker processes for independent trainings and folds."""
     device: str = "cpu"
-    """Torch device of the trainings."""
+    """Torch device of the trainings: the CPU unless asked (``device=`` of :meth:`from_env`)."""
 
     @property
-    def cache(self) -> NetworkCache | None:
+    def cache(self) -> "NetworkCache | None":
         """This mode's network cache (``<cache_root>/full`` or ``/fast``, capped at ``cache_gb``),
         what the library calls take as ``cache=``; None for no cache."""
         return network_cache(self.cache_root, fast=self.fast, max_gb=self.cache_gb)
@@ -216,19 +219,22 @@ class RunSettings:
                  seeds: tuple[int, ...] | None = None, seed: int = DEFAULT_SEED,
                  device: str | None = None) -> "RunSettings":
         """Settings from explicit values, falling back to ``DANAE_FAST``, ``DANAE_DATA``,
-        ``DANAE_CACHE``, ``DANAE_CACHE_GB`` and ``DANAE_JOBS``: what an entry point calls once."""
+        ``DANAE_CACHE``, ``DANAE_CACHE_GB`` and ``DANAE_JOBS``: what an entry point calls once.
+        The device is ``device`` if given, else the CPU (a GPU is used only when asked for)."""
         is_fast = fast_mode(fast)
         default_seeds = FAST_SEEDS if is_fast else FULL_SEEDS
         return cls(fast=is_fast, data_dir=data_dir(data), seed=seed,
                    seeds=tuple(int(s) for s in (seeds if seeds is not None else default_seeds)),
                    cache_root=cache_dir(cache), cache_gb=cache_gb(), jobs=jobs(n_jobs),
-                   device=default_device(device))
+                   device=device or "cpu")
 
     @property
-    def run_store(self) -> RunStore | None:
+    def run_store(self) -> "RunStore | None":
         """This mode's store of filter and network runs (``<cache_root>/runs/full`` or
         ``runs/fast``, capped at ``cache_gb``): what :func:`danae_lite.research.memo.use_store`
         takes; None for no cache."""
+        from .research.memo import RunStore
+
         if self.cache_root is None:
             return None
         return RunStore(self.cache_root / "runs" / ("fast" if self.fast else "full"), int(self.cache_gb * 1e9))
@@ -241,6 +247,8 @@ class RunSettings:
         """``base`` (default the paper's :class:`~danae_lite.core.train.TrainConfig`) with
         ``overrides``, this run's device, and in fast mode at most :data:`FAST_EPOCHS` epochs
         and :data:`FAST_MAX_STEPS` steps per network."""
+        from .core.train import TrainConfig
+
         cfg = replace(base or TrainConfig(), **overrides)
         if cfg.device is None:
             cfg = replace(cfg, device=self.device)

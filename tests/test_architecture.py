@@ -10,8 +10,10 @@ A module's layer is its folder, so a new file cannot sit in the wrong layer by a
 * ``danae_lite/core/``: what chapters 1-4 need (layer 0);
 * ``danae_lite/research/``: the research engine of chapters 5 onward (layer 1);
 * ``danae_lite/`` itself: the entry points, settings (:mod:`danae_lite.config`), chapter setup
-  (:mod:`danae_lite.book`), re-execution (:mod:`danae_lite.execute`) and the command line
-  (:mod:`danae_lite.cli`, ``__main__``) (layer 2).
+  (:mod:`danae_lite.book`) and the command line (:mod:`danae_lite.cli`, ``__main__``) (layer 2).
+
+Book maintenance (re-execution, the pages' generated blocks) is not in the package: ``tools/``.
+The Kalman-filter chapters (1-2) and the chapters' common ``setup()`` load no torch.
 """
 from __future__ import annotations
 
@@ -195,10 +197,52 @@ def test_layers_are_the_folders():
     """Every module sits in a layer folder or is one of the few entry points; the layer folders
     hold nothing else (no deeper folders to hide a module in)."""
     entry = {n for n in modules(PACKAGE) if "." not in n}
-    assert entry == {"__init__", "__main__", "book", "cli", "cli_data", "config", "execute", "pages",
-                     *LAYERS}
+    assert entry == {"__init__", "__main__", "book", "cli", "cli_data", "config", *LAYERS}
     assert all(len(n.split(".")) <= 2 for n in modules(PACKAGE))
     assert {n.split(".")[0] for n in modules(PACKAGE) if "." in n} == set(LAYERS)
+
+
+TORCH_FREE_CHAPTERS = ("01_kalman_filter", "02_sensors_to_estimates")
+"""The chapters that run without torch (the Kalman filter and its estimates)."""
+
+
+def chapter_imports(stem: str) -> list[str]:
+    """The import statements of a chapter's code cells (at any depth of a cell), as source lines."""
+    import json
+
+    nb = json.loads((PACKAGE.parent / "notebooks" / f"{stem}.ipynb").read_text(encoding="utf-8"))
+    lines = []
+    for cell in nb["cells"]:
+        if cell["cell_type"] == "code":
+            source = "".join(cell["source"])
+            tree = ast.parse("\n".join(l for l in source.splitlines() if not l.lstrip().startswith(("%", "!"))))
+            lines += [ast.unparse(n) for n in ast.walk(tree) if isinstance(n, (ast.Import, ast.ImportFrom))]
+    return lines
+
+
+def loaded_after(statements: list[str]) -> set[str]:
+    """The top-level names in ``sys.modules`` of a fresh interpreter after running ``statements``."""
+    import subprocess
+    import sys
+
+    probe = "\n".join([*statements, "import sys", "print(' '.join(sorted({m.split('.')[0] for m in sys.modules})))"])
+    run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True,
+                         cwd=PACKAGE.parent, env={**__import__("os").environ, "DANAE_CACHE": "off"})
+    return set(run.stdout.split())
+
+
+@pytest.mark.parametrize("stem", TORCH_FREE_CHAPTERS)
+def test_the_kf_chapters_and_setup_load_no_torch(stem: str):
+    """Everything chapters 1-2 import, and the common ``setup()``, runs without loading torch."""
+    statements = [*chapter_imports(stem), "from danae_lite.book import setup", "setup(verbose=False)"]
+    assert any("danae_lite.core" in s for s in statements)
+    loaded = loaded_after(statements)
+    assert "danae_lite" in loaded and "torch" not in loaded
+
+
+def test_the_torch_probe_sees_torch_when_it_is_loaded():
+    """The probe is not vacuous: a chapter that trains loads torch through the same route."""
+    assert "torch" in loaded_after(["from danae_lite.core.train import TrainConfig"])
 
 
 @pytest.fixture

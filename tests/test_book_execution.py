@@ -1,4 +1,4 @@
-"""The re-execution command of the book (``python -m danae_lite.execute``, ``make execute``).
+"""The re-execution command of the book (``python -m tools.execute``, ``make execute``).
 
 Two tests start a kernel (a few seconds each); the others check what must happen before any
 kernel starts: the safety rule, the code hash, the record and the command line.
@@ -15,8 +15,8 @@ import pytest
 from nbformat.v4 import new_code_cell, new_markdown_cell, new_notebook
 
 import danae_lite
-from danae_lite import execute
-from danae_lite.execute import (BookExecutionError, code_hash, data_fingerprint, execute_book, execution_record, main,
+from tools import execute
+from tools.execute import (BookExecutionError, code_hash, data_fingerprint, execute_book, execution_record, main,
                                 stamp)
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -82,7 +82,7 @@ GENERATED_BLOCK = re.compile(r"<!-- begin ([\w-]+):.*?<!-- end \1 -->", re.S)
 def _prose(cell: dict) -> str:
     text = markdown_of(cell)
     text = re.sub(r"^```.*?^```", "", text, flags=re.S | re.M)  # fenced code shown as code
-    text = GENERATED_BLOCK.sub(" ", text)  # written from the execution record (danae_lite.pages)
+    text = GENERATED_BLOCK.sub(" ", text)  # written from the execution record (tools.pages)
     for pattern in (FIELD, INLINE_CODE, MATH, LINK_TARGET, SECTION):
         text = pattern.sub(" ", text)
     return text

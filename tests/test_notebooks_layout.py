@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from danae_lite.execute import data_fingerprint, stale_reason, stamp
+from tools.execute import data_fingerprint, stale_reason, stamp
 
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("[0-9][0-9]_*.ipynb"))
@@ -85,7 +85,7 @@ def test_the_staleness_check_accepts_a_fresh_record_only(tmp_path):
     code[-1]["source"] = "".join(code[-1]["source"]) + "\nprint('edited')"
     reason = stale_reason(stamped, copy.stem)
     assert reason is not None and "code cells changed after its stored outputs were produced" in reason
-    assert f"python -m danae_lite.execute --only {copy.stem}" in reason and "make execute" in reason
+    assert f"python -m tools.execute --only {copy.stem}" in reason and "make execute" in reason
 
     for data_dir, fast, words in ((None, False, "simulated data"), (tmp_path, True, "fast-mode")):
         fresh = json.loads(copy.read_text())

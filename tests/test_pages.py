@@ -1,5 +1,5 @@
 """README.md and the Performance page quote the stored chapters, the committed benchmark run and
-the committed CI timings through generated blocks (danae_lite.pages): the blocks must equal what
+the committed CI timings through generated blocks (tools.pages): the blocks must equal what
 those records give, and the pages keep to their size budgets."""
 import json
 import re
@@ -9,12 +9,12 @@ from pathlib import Path
 import nbformat
 import pytest
 
-from danae_lite import pages
-from danae_lite.execute import chapter_records, toc_chapters
+from tools import pages
+from tools.execute import chapter_records, toc_chapters
 
 ROOT = Path(__file__).resolve().parents[1]
 NOTEBOOKS = ROOT / "notebooks"
-REWRITE = "rewrite it with: python -m danae_lite.execute --pages"
+REWRITE = "rewrite it with: python -m tools.execute --pages"
 README_LINES = 130          # the README's budget (150 lines, with room for what comes next)
 PERFORMANCE_WORDS = 1500
 

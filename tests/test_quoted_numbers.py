@@ -3,7 +3,7 @@
 A number with a unit of a result (%, °, rad, deg) written in ``README.md`` or a page of ``book/``
 must be printed, at the precision it is written with, by a stored output of some chapter, or be
 a published value (the paper) or a setting (a literal of ``danae_lite``). Text between the
-``<!-- begin NAME -->`` markers is written from the stored chapters by ``danae_lite.pages`` and
+``<!-- begin NAME -->`` markers is written from the stored chapters by ``tools.pages`` and
 checked by ``tests/test_pages.py``. ``book/performance.md`` is left out: its numbers are
 measurements of the machine (seconds, steps per second), each beside the command that gives it,
 not results of the chapters; its chapter times are such a generated block.
@@ -59,7 +59,7 @@ def test_results_quoted_on_a_page_come_from_a_stored_chapter(page):
     problems = unbacked_numbers(page.read_text(encoding="utf-8"))
     assert not problems, (f"{page.name}: numbers that no stored chapter prints and that are neither "
                           "published nor settings (quote them from a chapter, or generate the "
-                          "sentence with danae_lite.pages):\n" + "\n".join(problems))
+                          "sentence with tools.pages):\n" + "\n".join(problems))
 
 
 def test_the_check_flags_a_typed_result_and_accepts_a_generated_one():

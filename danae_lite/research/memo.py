@@ -38,8 +38,6 @@ from typing import Any, TypeVar
 import numpy as np
 from numpy.typing import NDArray
 
-from ..core.networks import module_code, prune_folder
-
 R = TypeVar("R")
 
 Array = NDArray[np.float64]
@@ -100,6 +98,8 @@ class RunStore:
     def prune(self) -> list[Path]:
         """Remove the least recently used runs until the folder is within ``max_bytes``."""
         _written[self.folder] = 0
+        from ..core.networks import prune_folder  # not at import: setup() of the KF chapters loads no torch
+
         return prune_folder(self.folder, "*.npy", self.max_bytes)
 
 
@@ -135,6 +135,8 @@ def code_fingerprint(module: str) -> str:
     directly or not, except this one (which stores and finds runs but computes none); the
     installed versions of the other libraries those import; and the CPU vector extensions
     numpy and torch dispatch to."""
+    from ..core.networks import module_code
+
     h = hashlib.blake2b(digest_size=16)
     ours, theirs = _import_closure(module)
     for name in sorted(ours - {__name__}):  # this module stores and finds runs, computes none

@@ -3,7 +3,7 @@
 Three places quote what the stored chapters hold:
 
 * ``book/performance.md``, the chapters' run times: :func:`times_markdown` of each chapter's
-  execution record (:func:`danae_lite.execute.execution_record`);
+  execution record (:func:`tools.execute.execution_record`);
 * each chapter's opening Markdown cell, its own run time (:func:`run_time_markdown`; a Markdown
   cell, so writing it leaves the chapter's record valid);
 * ``book/performance.md``, the benchmark: :func:`benchmark_markdown` of the committed benchmark
@@ -13,7 +13,7 @@ Three places quote what the stored chapters hold:
   ``benchmarks/ci_times.py``), the chapters' records and the benchmark run.
 
 Each sits between two marker lines, ``<!-- begin NAME: ... -->`` and ``<!-- end NAME -->``
-(invisible on GitHub, in the book and in JupyterLab). ``python -m danae_lite.execute`` rewrites them
+(invisible on GitHub, in the book and in JupyterLab). ``python -m tools.execute`` rewrites them
 after every run in place (and ``--pages`` alone), and ``tests/test_pages.py`` fails when a page
 differs from what they quote.
 """
@@ -34,7 +34,7 @@ quote (repository-relative; written by ``benchmarks/ci_times.py``)."""
 
 def marker_lines(name: str) -> tuple[str, str]:
     """The two lines that enclose the block ``name``."""
-    return (f"<!-- begin {name}: written by `python -m danae_lite.execute` from the stored "
+    return (f"<!-- begin {name}: written by `python -m tools.execute` from the stored "
             f"chapters; do not edit by hand -->", f"<!-- end {name} -->")
 
 
@@ -141,7 +141,7 @@ def times_markdown(records: Sequence[tuple[str, Mapping[str, Any]]]) -> str:
     bold (a stored run that is neither is named beside the chapter).
 
     ``records`` holds (chapter name, execution record) pairs in the book's order (see
-    :func:`danae_lite.execute.chapter_records`)."""
+    :func:`tools.execute.chapter_records`)."""
     lines = ["| chapter | cold [s] | networks trained / found | cold run (UTC) | "
              "warm [s] | networks trained / found | warm run (UTC) |",
              "|---|---:|---|---|---:|---|---|"]

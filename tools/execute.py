@@ -1,4 +1,4 @@
-"""The one command that re-executes the chapters: ``python -m danae_lite.execute`` (``make execute``).
+"""The one command that re-executes the chapters: ``python -m tools.execute`` (``make execute``).
 
 The book renders the outputs committed with the notebooks (``execute_notebooks: "off"`` in
 ``_config.yml``) and never executes them itself; this command produces them. Each executed
@@ -26,7 +26,7 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .config import CACHE_ENV, DATA_ENV, DEFAULT_CACHE_GB, FAST_ENV, JOBS_ENV, RunSettings, kernel_environment
+from danae_lite.config import CACHE_ENV, DATA_ENV, DEFAULT_CACHE_GB, FAST_ENV, JOBS_ENV, RunSettings, kernel_environment
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -119,10 +119,10 @@ def stale_reason(nb: Mapping[str, Any], stem: str, data_sha256: str | None = Non
     (:func:`data_fingerprint`); given ``data_sha256`` (the fingerprint of the data at hand), also
     of that data. Markdown cells do not enter: editing prose keeps a chapter fresh.
     """
-    from .core._version import __version__
+    from danae_lite.core._version import __version__
 
     rerun = (f"re-execute it with real data: DANAE_DATA=/path/to/data make execute "
-             f"(or: python -m danae_lite.execute --only {stem})")
+             f"(or: python -m tools.execute --only {stem})")
     record = execution_record(nb)
     if record is None:
         return (f"{stem}: its stored outputs carry no execution record (metadata.danae.execution), so its "
@@ -165,7 +165,7 @@ def chapter_records(paths: Sequence[Path]) -> list[tuple[str, dict[str, Any]]]:
         record = execution_record(nb)
         if record is None:
             raise ValueError(f"{path}: no execution record (metadata.danae.execution); run "
-                             "python -m danae_lite.execute first")
+                             "python -m tools.execute first")
         for key, kept in (("cold", cold_record(nb)), ("warm", warm_record(nb))):
             if kept is not None:
                 record[key] = kept
@@ -218,10 +218,10 @@ def keep_run(nb: MutableMapping[str, Any], record: Mapping[str, Any], *, cold: b
 def write_pages(root: Path, folder: Path) -> None:
     """Rewrite the blocks of ``README.md``, ``book/performance.md`` and the chapters' opening
     cells that quote the stored chapters of ``_toc.yml`` in ``folder``, the committed benchmark
-    run and the committed CI timings (:mod:`danae_lite.pages`); names each page that moved.
+    run and the committed CI timings (:mod:`tools.pages`); names each page that moved.
 
     Raises ValueError when a chapter carries no execution record or a page lacks its block."""
-    from . import pages
+    from tools import pages
 
     if not (root / "book" / "performance.md").is_file():
         return                                  # not the book's repository: nothing to quote
@@ -275,7 +275,7 @@ def stamp(nb: MutableMapping[str, Any], *, seconds: float, data_dir: str | os.Pa
     """
     from importlib.metadata import PackageNotFoundError, version
 
-    from .core._version import __version__
+    from danae_lite.core._version import __version__
 
     try:
         torch_version = version("torch")
@@ -582,11 +582,11 @@ safety rule:
   executed copies. A chapter whose cell fails is left untouched.
 
 examples:
-  DANAE_DATA=/path/to/data python -m danae_lite.execute                 # the stale chapters, in place
-  DANAE_DATA=/path/to/data python -m danae_lite.execute --all --cold    # every chapter, every network trained
+  DANAE_DATA=/path/to/data python -m tools.execute                 # the stale chapters, in place
+  DANAE_DATA=/path/to/data python -m tools.execute --all --cold    # every chapter, every network trained
   ... --all --cold --cache NEW_DIR      # the same, in a new cache kept for later warm runs
-  python -m danae_lite.execute --data-dir /path/to/data --only 03_danae  # one chapter, in place
-  python -m danae_lite.execute --fast --out _build/fast_notebooks        # simulator, fast, copies
+  python -m tools.execute --data-dir /path/to/data --only 03_danae  # one chapter, in place
+  python -m tools.execute --fast --out _build/fast_notebooks        # simulator, fast, copies
 """
 
 
@@ -621,7 +621,7 @@ def _cold_cache(requested: str | None, temporary: Path) -> Path:
 def _parser() -> argparse.ArgumentParser:
     """The command line of :func:`main`."""
     parser = argparse.ArgumentParser(
-        prog="python -m danae_lite.execute", formatter_class=argparse.RawDescriptionHelpFormatter,
+        prog="python -m tools.execute", formatter_class=argparse.RawDescriptionHelpFormatter,
         description="Re-execute the book's chapters, in the order of _toc.yml, and store their outputs\n"
                     "and a record of the run in the notebooks. The book itself (make book) only renders\n"
                     "the stored outputs; this is the one command that produces them (make execute).",
@@ -659,7 +659,7 @@ def _parser() -> argparse.ArgumentParser:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
-    """Command line: ``python -m danae_lite.execute`` (``make execute``). Returns the exit status.
+    """Command line: ``python -m tools.execute`` (``make execute``). Returns the exit status.
 
     Parameters
     ----------
