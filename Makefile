@@ -18,12 +18,12 @@ VENV   ?= .venv
 BIN    := $(VENV)/bin
 STAMP  := $(VENV)/.installed
 JOBS   ?= 2
-# worker processes for the chapters' independent trainings and folds (danae_lite.config.RunSettings)
+# worker processes for the chapters' independent trainings and folds (danae_lite.runtime.RunSettings)
 EXEC_JOBS ?= $(shell nproc 2>/dev/null || echo 1)
 ARGS   ?=
 # Trained networks are shared between chapters and runs through the user's cache folder
 # (~/.cache/danae_lite/full and /fast, capped; DANAE_CACHE=/path or off, DANAE_CACHE_GB: see
-# danae_lite.config). make execute ARGS=--cold trains every network in a new empty cache instead.
+# danae_lite.runtime). make execute ARGS=--cold trains every network in a new empty cache instead.
 
 .PHONY: book execute test unit lab bench clean
 

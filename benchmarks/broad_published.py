@@ -1,7 +1,7 @@
 """Reproduce the BROAD authors' published figures: Madgwick and Mahony on every trial.
 
-Runs the benchmark's two filters (:func:`danae_lite.research.broad.madgwick` at beta 0.12 and
-:func:`danae_lite.research.broad.mahony` at k_P 0.74, k_I 0.0012: the authors' common best parameters)
+Runs the benchmark's two filters (:func:`danae_lite.data.broad.madgwick` at beta 0.12 and
+:func:`danae_lite.data.broad.mahony` at k_P 0.74, k_I 0.0012: the authors' common best parameters)
 on every trial found under ``<data dir>/broad/data_mat``, scores them with the benchmark's own
 metric (:func:`danae_lite.research.broad_benchmark.evaluate`: total, heading and inclination RMSE over the movement
 phases) and prints, per trial and filter, ours beside the published figure and the relative
@@ -37,8 +37,9 @@ try:
 except ImportError:  # run from a checkout without `pip install -e .`
     sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-from danae_lite.research import broad, broad_benchmark
-from danae_lite.config import data_dir as resolve_data_dir
+from danae_lite.data import broad
+from danae_lite.research import broad_benchmark
+from danae_lite.runtime import data_dir as resolve_data_dir
 
 SHORT = {"total_rmse_deg": "total", "heading_rmse_deg": "heading", "inclination_rmse_deg": "incl"}
 

@@ -3,8 +3,8 @@
 Everything runs on one simulated recording (the simulator's hand-held scenario, 1000 s at
 100 Hz = 100,000 samples; no real data needed), in one process:
 
-1. **Filters** -- samples/s of the paper's KF (:func:`danae_lite.core.kalman.run_kf`, authors'
-   setting, best of 5) beside the field libraries of :mod:`danae_lite.research.filters`: Fusion and
+1. **Filters** -- samples/s of the paper's KF (:func:`danae_lite.kalman.filter.run_kf`, authors'
+   setting, best of 5) beside the field libraries of :mod:`danae_lite.research.ahrs.filters`: Fusion and
    VQF (C/C++, whole recording, best of 5), Madgwick and Mahony (``ahrs``, pure Python:
    first 20,000 samples, best of 3). Target: KF >= 250,000 samples/s (PASS/MISS is printed;
    a miss never fails the run).
@@ -13,12 +13,12 @@ Everything runs on one simulated recording (the simulator's hand-held scenario, 
    timed: ``TrainResult.seconds / steps``), on the CPU and, when available, on CUDA.
 3. **Training throughput against the physical limit** -- windows/s of the bare network step
    (``DanaePaper`` forward + backward + Adam, batch 16, pre-cut windows, nothing else) beside
-   :func:`danae_lite.core.train.train` with the paper's settings on 50,000 windows, validation
+   :func:`danae_lite.danae.train.train` with the paper's settings on 50,000 windows, validation
    included (``train_loop_windows_per_s``; their ratio is the loop's overhead), the time of
    that whole paper-settings epoch (``paper_epoch_50k_s``), the arithmetic rate it achieves
    (``train_gflops``: 3x the forward FLOPs per window, counted from the layer shapes) and
    the machine's peak for a 2048x2048 float32 matmul on the same threads (``matmul_gflops``).
-4. **DANAE inference** -- whole-recording batched :func:`danae_lite.core.inference.predict` (ms and
+4. **DANAE inference** -- whole-recording batched :func:`danae_lite.danae.predict.predict` (ms and
    µs per sample) and the streaming cost per sample: the paper network run once per new
    sample on the latest 20-sample window (batch 1, ``torch.no_grad``, 1 thread) -- this is
    ``danae_infer_ms_per_sample`` -- and, when :mod:`danae_lite.research.streaming` is present, the
@@ -59,13 +59,13 @@ except ImportError:  # run from a checkout without `pip install -e .`
 
 import torch
 
-from danae_lite.research import filters
-from danae_lite.core.seeding import default_device
-from danae_lite.core.kalman import KFConfig, run_kf
-from danae_lite.core.simulate import simulate
-from danae_lite.core.model import DanaePaper
-from danae_lite.core.inference import predict
-from danae_lite.core.train import TrainConfig, _default_threads, train
+from danae_lite.research.ahrs import filters
+from danae_lite.danae.seeding import default_device
+from danae_lite.kalman.filter import KFConfig, run_kf
+from danae_lite.data.simulate import simulate
+from danae_lite.danae.model import DanaePaper
+from danae_lite.danae.predict import predict
+from danae_lite.danae.train import TrainConfig, _default_threads, train
 
 KF_TARGET = 250_000.0
 """Samples per second the KF should reach (informative only)."""
@@ -455,7 +455,7 @@ def bench_inference(result: Any, x: np.ndarray, y: np.ndarray, sz: dict[str, Any
     # streaming with a causal network, when the streaming module offers it
     try:
         streaming = importlib.import_module("danae_lite.research.streaming")
-        from danae_lite.core.model import ARCHITECTURES
+        from danae_lite.danae.model import ARCHITECTURES
         ok = hasattr(streaming, "StreamingDanae") and hasattr(streaming, "measure_latency") and "causal" in ARCHITECTURES
     except ImportError:
         ok = False
@@ -486,13 +486,13 @@ def bench_inference(result: Any, x: np.ndarray, y: np.ndarray, sz: dict[str, Any
 
 
 def bench_denoiser_stream(sz: dict[str, Any]) -> dict[str, Any]:
-    """Per-sample latency of the recommended denoiser (:class:`danae_lite.research.denoiser.DenoiserStream`)
+    """Per-sample latency of the recommended denoiser (:class:`danae_lite.research.danae_res.DenoiserStream`)
     behind VQF, fitted briefly on simulated recordings: one sample's input features, the causal
     network's step and the gated correction, timed together; and its agreement with the batch output."""
-    from danae_lite.core.datasets import Experiment
-    from danae_lite.research.denoiser import DanaeRes, DenoiserStream
+    from danae_lite.data.experiments import Experiment
+    from danae_lite.research.danae_res import DanaeRes, DenoiserStream
     from danae_lite.research.leaderboard import run_leaderboard
-    from danae_lite.core.simulate import simulate
+    from danae_lite.data.simulate import simulate
 
     recs = [simulate("handheld", duration=60.0, seed=s, name=f"bench-{s}") for s in range(3)]
     method = DanaeRes("vqf")

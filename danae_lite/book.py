@@ -6,7 +6,7 @@ It fixes the things every chapter relies on, in one place:
 * the real-data directory (``DANAE_DATA``) — or the simulator when it is absent;
 * the seeds of python and numpy (and of torch when the chapter has loaded it; a chapter that
   trains seeds each network itself, as the library does);
-* the plotting style of the book (:mod:`danae_lite.core.plots`).
+* the plotting style of the book (:mod:`danae_lite.plots`).
 
 It loads no torch: the Kalman-filter chapters run without it. Torch's CPU threads stay torch's
 own default (every physical core, or ``OMP_NUM_THREADS``).
@@ -37,7 +37,7 @@ from typing import Any
 
 import numpy as np
 
-from .config import DEFAULT_SEED, RunSettings
+from .runtime import DEFAULT_SEED, RunSettings
 from .research import memo
 
 # values glued by the running chapter, by name (one chapter per kernel; setup() empties it)
@@ -47,9 +47,9 @@ _VERBATIM = re.compile(r"^```.*?^```[^\n]*$|`[^`\n]*`|\$\$.*?\$\$|\$[^$\n]+\$", 
 
 
 def setup(seed: int = DEFAULT_SEED, *, verbose: bool = True) -> RunSettings:
-    """Apply the book's common settings and return them (:class:`~danae_lite.config.RunSettings`
+    """Apply the book's common settings and return them (:class:`~danae_lite.runtime.RunSettings`
     from ``DANAE_FAST``, ``DANAE_DATA``, ``DANAE_CACHE`` and ``DANAE_JOBS``)."""
-    from .core import plots
+    from . import plots
 
     plots.use_style()
     random.seed(seed)

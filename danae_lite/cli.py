@@ -6,12 +6,12 @@ same split (:func:`danae_lite.research.leaderboard.run_leaderboard`) and writes 
 benchmark's total, heading and inclination RMSE [deg] per method and test trial. Both share the
 data flags below.
 
-The command parses arguments, resolves the data (:mod:`~danae_lite.core.datasets`,
-:mod:`~danae_lite.core.oxiod`, :mod:`~danae_lite.core.ucs`) and calls
-:func:`danae_lite.core.pipeline.reproduce`, the same function the book's chapters call: the
+The command parses arguments, resolves the data (:mod:`~danae_lite.data.experiments`,
+:mod:`~danae_lite.data.oxiod`, :mod:`~danae_lite.data.ucs`) and calls
+:func:`danae_lite.paper.pipeline.reproduce`, the same function the book's chapters call: the
 paper's KF on every recording -> one DANAE per angle and seed -> the paper's metrics
-(:mod:`~danae_lite.core.metrics`) -> the paper's figure (:mod:`~danae_lite.core.figures`). It writes
-into ``--out`` (:meth:`danae_lite.core.pipeline.Reproduction.write`, plus ``run.json``):
+(:mod:`~danae_lite.evaluate.metrics`) -> the paper's figure (:mod:`~danae_lite.paper.figures`). It writes
+into ``--out`` (:meth:`danae_lite.paper.pipeline.Reproduction.write`, plus ``run.json``):
 
 ``metrics.json``
     ``{"experiment", "data", "train", "test", "seeds", "kf", "danae", "paper", "seconds"}``;
@@ -29,7 +29,7 @@ into ``--out`` (:meth:`danae_lite.core.pipeline.Reproduction.write`, plus ``run.
 ``run.json``
     How the run was made: the command, the data note, fast mode, training settings, device.
 ``models/`` (only with ``--save-models``)
-    One checkpoint per angle and seed (:func:`danae_lite.core.train.save`).
+    One checkpoint per angle and seed (:func:`danae_lite.danae.train.save`).
 
 Metrics are computed on all samples of all test recordings taken together, with errors
 wrapped to [-pi, pi). DANAE numbers use the overlap-average reconstruction (every sample is
@@ -49,19 +49,20 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .config import (CACHE_ENV, CACHE_GB_ENV, DATA_ENV, DEFAULT_CACHE_GB, FAST_ENV, FAST_EPOCHS, FAST_MAX_STEPS, FAST_SEEDS,
-                     FULL_SEEDS, JOBS_ENV)
-from .core.datasets import (FAST_DURATION, FAST_SAMPLES, OXIOD_TEST, OXIOD_TRAIN, PAPER_SPLIT_FOLDER,
-                            PAPER_SPLIT_TEST, PAPER_SPLIT_TRAIN, TRAIN_FRACTION)
+from .runtime import (CACHE_ENV, CACHE_GB_ENV, DATA_ENV, DEFAULT_CACHE_GB, FAST_ENV,
+                      FAST_EPOCHS, FAST_MAX_STEPS, FAST_SEEDS, FULL_SEEDS, JOBS_ENV)
+from .data.experiments import (FAST_DURATION, FAST_SAMPLES, OXIOD_TEST, OXIOD_TRAIN,
+                               PAPER_SPLIT_FOLDER, PAPER_SPLIT_TEST, PAPER_SPLIT_TRAIN,
+                               TRAIN_FRACTION)
 from .cli_data import UsageError, load_data
-from .research import broad as broad_data
-from .research import oxiod_motions
-from .research.oxiod_motions import FAST_MOTION_RECORDINGS
+from .data import broad as broad_data
+from .data import oxiod_motions
+from .data.oxiod_motions import FAST_MOTION_RECORDINGS
 
 if TYPE_CHECKING:
-    from .config import RunSettings
-    from .core.pipeline import Reproduction
-    from .core.train import TrainConfig
+    from .runtime import RunSettings
+    from .paper.pipeline import Reproduction
+    from .danae.train import TrainConfig
 
 __all__ = ["main", "build_parser"]
 
@@ -76,10 +77,10 @@ LEADERBOARD_ONLY = ("broad",)
 
 
 def __getattr__(name: str) -> Any:
-    """``CSV_COLUMNS`` is :data:`danae_lite.core.pipeline.CSV_COLUMNS`, imported on first use (the
+    """``CSV_COLUMNS`` is :data:`danae_lite.paper.pipeline.CSV_COLUMNS`, imported on first use (the
     pipeline imports torch, which ``--help`` does not need)."""
     if name == "CSV_COLUMNS":
-        from .core.pipeline import CSV_COLUMNS
+        from .paper.pipeline import CSV_COLUMNS
 
         return CSV_COLUMNS
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
@@ -284,8 +285,8 @@ def main(argv: Sequence[str] | None = None) -> int:
         parser.print_help(sys.stderr)
         return 2
     args.argv = list(sys.argv[1:] if argv is None else argv)
-    from .core.recording import DataError
-    from .core.checkpoints import CheckpointError
+    from .data.recording import DataError
+    from .danae.checkpoints import CheckpointError
 
     try:
         return leaderboard(args) if args.command == "leaderboard" else reproduce(args)
@@ -328,7 +329,7 @@ def _train_config(args: argparse.Namespace, settings: RunSettings) -> TrainConfi
     then ``--epochs``/``--max-steps``/``--threads`` as given."""
     from dataclasses import replace
 
-    from .core.train import TrainConfig
+    from .danae.train import TrainConfig
 
     # the paper's settings, validated on windows that tile the tails as in chapters 3-4
     config = settings.train_config(TrainConfig(epochs=PAPER_EPOCHS[args.experiment], val_stride=20))
@@ -343,7 +344,7 @@ def _log(line: str) -> None:
 
 def _prepare(args: argparse.Namespace) -> tuple[RunSettings, Path, Any, TrainConfig]:
     """Shared start of both subcommands: run settings, output folder, data, training settings."""
-    from .config import RunSettings
+    from .runtime import RunSettings
 
     seeds = None if args.seeds is None else tuple(int(s) for s in args.seeds)  # None: the mode's default
     if seeds is not None and len(set(seeds)) != len(seeds):
@@ -361,7 +362,7 @@ def _prepare(args: argparse.Namespace) -> tuple[RunSettings, Path, Any, TrainCon
     matplotlib.use("Agg")
     import torch
 
-    from .core import pipeline
+    from .paper import pipeline
 
     exp = load_data(args, settings)
     if args.threads:
@@ -372,8 +373,8 @@ def _prepare(args: argparse.Namespace) -> tuple[RunSettings, Path, Any, TrainCon
 
 
 def reproduce(args: argparse.Namespace) -> int:
-    """Run the ``reproduce`` subcommand (:func:`danae_lite.core.pipeline.reproduce`); returns the exit status."""
-    from .core import pipeline
+    """Run the ``reproduce`` subcommand (:func:`danae_lite.paper.pipeline.reproduce`); returns the exit status."""
+    from .paper import pipeline
 
     if args.experiment in LEADERBOARD_ONLY:
         raise UsageError(f"--experiment {args.experiment}: the paper has no such experiment to reproduce; "
@@ -495,8 +496,8 @@ def folds(args: argparse.Namespace) -> int:
 
 
 def _save_models(rep: Reproduction, folder: Path) -> list[Path]:
-    """One checkpoint per angle and seed (:func:`danae_lite.core.train.save`)."""
-    from .core.train import save
+    """One checkpoint per angle and seed (:func:`danae_lite.danae.train.save`)."""
+    from .danae.train import save
 
     exp = rep.experiment
     return [save(res, folder / f"danae_{angle}_seed{seed}.pt",
@@ -508,7 +509,7 @@ def _write_run_json(args: argparse.Namespace, rep: Reproduction, fast: bool, dev
     """``run.json``: the command, data note, mode, settings and the figure shown."""
     import torch
 
-    from .core.figures import PAPER_FIGURES
+    from .paper.figures import PAPER_FIGURES
 
     exp = rep.experiment
     spec = PAPER_FIGURES[exp.name]
@@ -530,7 +531,7 @@ def _print_summary(rep: Reproduction) -> None:
     """Print the metric table [rad] and the RMSE reductions [%] next to the paper's."""
     import pandas as pd
 
-    from .core.metrics import reduction_pct
+    from .evaluate.metrics import reduction_pct
 
     result = rep.to_json()
     shown = rep.metrics_frame().set_index(["method", "angle"])

@@ -1,5 +1,5 @@
 """The command line's data flags -> recordings: ``--experiment``, ``--data-dir``, ``--train`` /
-``--test`` and ``--split`` resolved to a :class:`~danae_lite.core.datasets.Experiment` (used by
+``--test`` and ``--split`` resolved to a :class:`~danae_lite.data.experiments.Experiment` (used by
 :mod:`danae_lite.cli`; every mistake is a :class:`UsageError` naming the flag and the file)."""
 from __future__ import annotations
 
@@ -9,12 +9,13 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .config import DATA_ENV
-from .core.datasets import FAST_SAMPLES, PAPER_SPLIT_FOLDER, PAPER_SPLIT_TEST, PAPER_SPLIT_TRAIN
-from .research import broad as broad_data
+from .runtime import DATA_ENV
+from .data.experiments import (FAST_SAMPLES, PAPER_SPLIT_FOLDER, PAPER_SPLIT_TEST,
+                               PAPER_SPLIT_TRAIN)
+from .data import broad as broad_data
 
 if TYPE_CHECKING:
-    from .config import RunSettings
+    from .runtime import RunSettings
 
 __all__ = ["UsageError", "load_data"]
 
@@ -71,13 +72,13 @@ def _unique_names(train: list[Any], test: list[Any]) -> tuple[list[Any], list[An
 
 def _paper_split(args: argparse.Namespace, name: str, base: Path | None) -> argparse.Namespace:
     """``--split paper``: the arguments with ``--train``/``--test`` set to the paper's files."""
-    from .core import datasets
+    from .data import experiments
 
     if name != "oxiod":
         raise UsageError(f"--split paper is OxIOD's split; --experiment is {name}")
     if args.train is not None or args.test is not None:
         raise UsageError("--split paper chooses the recordings itself; leave out --train/--test")
-    root = datasets.oxiod_root(base) if base is not None else None
+    root = experiments.oxiod_root(base) if base is not None else None
     if root is None:
         where = f"{base}/oxiod" if base is not None else f"a data directory (--data-dir or ${DATA_ENV})"
         raise UsageError(f"--split paper needs OxIOD's slow-walking set; no oxiod/ folder in {where}")
@@ -91,8 +92,8 @@ def _paper_split(args: argparse.Namespace, name: str, base: Path | None) -> argp
 
 
 def load_data(args: argparse.Namespace, settings: RunSettings) -> Any:
-    """Resolve the experiment's recordings from the arguments; returns a datasets.Experiment."""
-    from .core import datasets, ucs
+    """Resolve the experiment's recordings from the arguments; returns a experiments.Experiment."""
+    from .data import experiments, ucs
 
     name, fast = args.experiment, settings.fast
     base = settings.data_dir  # --data-dir, else $DANAE_DATA (resolved, checked) or None
@@ -101,14 +102,14 @@ def load_data(args: argparse.Namespace, settings: RunSettings) -> Any:
     if args.data_dir is not None and args.train is None and args.test is None:
         folder = base / name
         if not folder.is_dir():
-            expected = {"oxiod": folder / "handheld" / "data1" / "syn" / "imuK.csv", "ucs": folder / datasets.UCS_RELPATH,
+            expected = {"oxiod": folder / "handheld" / "data1" / "syn" / "imuK.csv", "ucs": folder / experiments.UCS_RELPATH,
                         "broad": folder / "data_mat" / "NN_<name>.mat"}[name]
             raise UsageError(f"--data-dir {base}: no {name}/ folder with recordings (expected {expected}); "
                              "omit --data-dir to let the simulator stand in")
     if args.train is None and args.test is None:
         if name == "broad":
             return broad_data.load_experiment(base, fast=fast, verbose=False)
-        return datasets.load_experiment(name, base, fast=fast, verbose=False)
+        return experiments.load_experiment(name, base, fast=fast, verbose=False)
     if name == "broad":
         return _broad_files(args, base, fast)
 
@@ -118,10 +119,10 @@ def load_data(args: argparse.Namespace, settings: RunSettings) -> Any:
         single = {p.resolve() for p in train_p + test_p}
         if len(single) == 1 and (not train_p or not test_p or len(train_p) == len(test_p) == 1):
             path = train_p[0] if train_p else test_p[0]
-            tr, te = ucs.split_train_test(ucs.load_recording(path), datasets.TRAIN_FRACTION)
-            note = (f"UCS file {path}: first {datasets.TRAIN_FRACTION:.0%} ({len(tr)} samples) train, "
-                    f"last {1 - datasets.TRAIN_FRACTION:.0%} ({len(te)} samples) test.")
-            return datasets.Experiment("ucs", "real", [tr], [te], note)
+            tr, te = ucs.split_train_test(ucs.load_recording(path), experiments.TRAIN_FRACTION)
+            note = (f"UCS file {path}: first {experiments.TRAIN_FRACTION:.0%} ({len(tr)} samples) train, "
+                    f"last {1 - experiments.TRAIN_FRACTION:.0%} ({len(te)} samples) test.")
+            return experiments.Experiment("ucs", "real", [tr], [te], note)
         if not train_p or not test_p:
             flag = "--train" if train_p else "--test"
             raise UsageError(f"{flag} names {len(train_p or test_p)} UCS files but the other side is missing; "
@@ -130,30 +131,30 @@ def load_data(args: argparse.Namespace, settings: RunSettings) -> Any:
         test = [ucs.load_recording(p, name=f"ucs/{p.parent.name}/{p.stem}") for p in test_p]
         train, test = _unique_names(train, test)
         note = f"UCS files: train {', '.join(map(str, train_p))}; test {', '.join(map(str, test_p))} (each used whole)."
-        return datasets.Experiment("ucs", "real", train, test, note)
+        return experiments.Experiment("ucs", "real", train, test, note)
 
     # oxiod with explicit files; a side left out comes from the data directory's defaults
     syn = None
     if args.train is None or args.test is None:
-        syn = _default_root(args, base, "oxiod", "recordings").joinpath(*datasets.OXIOD_FOLDER, "syn")
+        syn = _default_root(args, base, "oxiod", "recordings").joinpath(*experiments.OXIOD_FOLDER, "syn")
     train_p = (_oxiod_files(args.train, "--train") if args.train is not None
-               else [syn / f"imu{k}.csv" for k in datasets.OXIOD_TRAIN])
+               else [syn / f"imu{k}.csv" for k in experiments.OXIOD_TRAIN])
     test_p = (_oxiod_files(args.test, "--test") if args.test is not None
-              else [syn / f"imu{k}.csv" for k in datasets.OXIOD_TEST])
-    train, test = _unique_names(datasets.load_oxiod_files(train_p, fast), datasets.load_oxiod_files(test_p, fast))
-    cut = datasets.fast_note(fast, FAST_SAMPLES)
+              else [syn / f"imu{k}.csv" for k in experiments.OXIOD_TEST])
+    train, test = _unique_names(experiments.load_oxiod_files(train_p, fast), experiments.load_oxiod_files(test_p, fast))
+    cut = experiments.fast_note(fast, FAST_SAMPLES)
     note = (f"OxIOD files: train {', '.join(r.name for r in train)}; test {', '.join(r.name for r in test)}{cut}.")
     overlap = {p.resolve() for p in train_p} & {p.resolve() for p in test_p}
     if overlap:
         note += f" Warning: {', '.join(map(str, sorted(overlap)))} is used for training and testing."
-    return datasets.Experiment("oxiod", "real", train, test, note)
+    return experiments.Experiment("oxiod", "real", train, test, note)
 
 
 def _default_root(args: argparse.Namespace, base: Path | None, name: str, what: str) -> Path:
     """``<data dir>/<name>`` for the side of ``--train``/``--test`` left out; UsageError when absent."""
-    from .core import datasets
+    from .data import experiments
 
-    root = {"oxiod": datasets.oxiod_root, "broad": broad_data.root}[name](base) if base is not None else None
+    root = {"oxiod": experiments.oxiod_root, "broad": broad_data.root}[name](base) if base is not None else None
     if root is None:
         given, missing = ("--test", "--train") if args.train is None else ("--train", "--test")
         where = f"{base}/{name}" if base is not None else f"a data directory (--data-dir or ${DATA_ENV})"
@@ -180,7 +181,7 @@ def _broad_trial_files(items: Sequence[str], flag: str) -> list[Path]:
 
 def _broad_files(args: argparse.Namespace, base: Path | None, fast: bool) -> Any:
     """BROAD trials named by ``--train``/``--test``; a side left out takes the data directory's default."""
-    from .core import datasets
+    from .data import experiments
 
     default = None
     if args.train is None or args.test is None:
@@ -196,12 +197,12 @@ def _broad_files(args: argparse.Namespace, base: Path | None, fast: bool) -> Any
     train_p, train = load(args.train, "--train", default.train if default else [])
     test_p, test = load(args.test, "--test", default.test if default else [])
     train, test = _unique_names(train, test)
-    cut = datasets.fast_note(fast, broad_data.FAST_SAMPLES)
+    cut = experiments.fast_note(fast, broad_data.FAST_SAMPLES)
     note = f"BROAD trials: train {', '.join(r.name for r in train)}; test {', '.join(r.name for r in test)}{cut}."
     overlap = {p.resolve() for p in train_p} & {p.resolve() for p in test_p}
     if overlap:
         note += f" Warning: {', '.join(map(str, sorted(overlap)))} is used for training and testing."
-    return datasets.Experiment("broad", "real", train, test, note, aligned=True)
+    return experiments.Experiment("broad", "real", train, test, note, aligned=True)
 
 
 # ---------------------------------------------------------------------------------------

@@ -5,9 +5,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from danae_lite.core.alignment import FrameAlignment, estimate_alignment, rate_lag, specific_force
-from danae_lite.core.recording import Recording
-from danae_lite.core.simulate import SensorErrors, simulate
+from danae_lite.data.alignment import (FrameAlignment, estimate_alignment, rate_lag,
+                                       specific_force)
+from danae_lite.data.recording import Recording
+from danae_lite.data.simulate import SensorErrors, simulate
 
 TRUE_ROTVEC = np.array([0.05, -0.08, 2.9])  # ~170 degrees, mostly about z, like the OxIOD phone
 
@@ -64,8 +65,8 @@ def test_clean_masks_must_match():
 def test_oxiod_specific_force_points_up_on_a_static_stretch(oxiod_dir):
     """Sign check on real data: where the phone is still, -(gravity + user_acc) rotated into the
     Vicon body and then into the Vicon world is +z (up), within a few degrees."""
-    from danae_lite.core.groundtruth import clean_mask
-    from danae_lite.core.oxiod import load_recording
+    from danae_lite.data.groundtruth import clean_mask
+    from danae_lite.data.oxiod import load_recording
 
     rec = load_recording(oxiod_dir / "handheld" / "data1" / "syn" / "imu3.csv")
     al = estimate_alignment([rec], [clean_mask(rec)])

@@ -6,7 +6,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from danae_lite.core.angles import angle_diff, euler_to_quat, quat_to_euler, wrap
+from danae_lite.angles import angle_diff, euler_to_quat, quat_to_euler, wrap
 
 
 def test_wrap_hand_values():
@@ -67,7 +67,7 @@ def test_euler_error_angle_is_scipys_rotation_angle():
     small angles, where ``2 acos(q1 . q2)`` would lose half the digits, and with broadcasting."""
     from scipy.spatial.transform import Rotation
 
-    from danae_lite.core.angles import euler_error_angle, euler_to_quat
+    from danae_lite.angles import euler_error_angle, euler_to_quat
 
     rng = np.random.default_rng(0)
     e = rng.uniform([-np.pi, -1.5, -np.pi], [np.pi, 1.5, np.pi], (1000, 3))

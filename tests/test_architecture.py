@@ -1,41 +1,38 @@
-"""The package's shape: imports run one way (entry points -> research engine -> core), no import
-circles, every module in the package map, and only the settings module reads the ``DANAE_*``
-variables.
+"""The package's shape: rooms by concept, imports pointing one way (down the package map), no
+import circles, every module in the package map, and only the settings module reads the
+``DANAE_*`` variables.
 
 Imports are read from the source with :mod:`ast`, including those made inside functions (they
 run too, only later). Imports under ``if TYPE_CHECKING:`` are left out: they never run.
 
-A module's layer is its folder, so a new file cannot sit in the wrong layer by accident:
-
-* ``danae_lite/core/``: what chapters 1-4 need (layer 0);
-* ``danae_lite/research/``: the research engine of chapters 5 onward (layer 1);
-* ``danae_lite/`` itself: the entry points, settings (:mod:`danae_lite.config`), chapter setup
-  (:mod:`danae_lite.book`) and the command line (:mod:`danae_lite.cli`, ``__main__``) (layer 2).
-
+A module's room is the first part of its name (``kalman.filter`` -> ``kalman``); :data:`ROOMS`
+lists them in the order of the package map, and a room imports only rooms listed before it.
 Book maintenance (re-execution, the pages' generated blocks) is not in the package: ``tools/``.
 The Kalman-filter chapters (1-2) and the chapters' common ``setup()`` load no torch.
 """
 from __future__ import annotations
 
 import ast
+import re
 from pathlib import Path
 
 import pytest
 
 PACKAGE = Path(__file__).resolve().parents[1] / "danae_lite"
-SETTINGS = "config"
-LAYERS = ("core", "research")
-"""The layer folders, lowest first; modules directly in the package are the entry points."""
+SETTINGS = "runtime"
+ROOMS = ("_version", "angles", "data", "kalman", "danae", "evaluate", "plots", "paper", "research",
+         "runtime", "book", "cli_data", "cli", "__main__", "__init__")
+"""The package's rooms (a folder or a module at the top), in the order data flows through them;
+a room imports only rooms listed before it."""
 
 
 def layer(module: str) -> int:
-    """0 core, 1 research engine, 2 entry points, from the module's folder (``core.kalman`` -> 0)."""
-    folder = module.split(".")[0]
-    return LAYERS.index(folder) if folder in LAYERS else 2
+    """The position of the module's room in :data:`ROOMS` (``kalman.filter`` -> that of ``kalman``)."""
+    return ROOMS.index(module.split(".")[0])
 
 
 def modules(package: Path) -> dict[str, Path]:
-    """Module name relative to the package (``core.kalman``, ``cli``; a folder's ``__init__`` is
+    """Module name relative to the package (``kalman.filter``, ``cli``; a folder's ``__init__`` is
     the folder's name) -> its file, for every ``.py`` file under ``package``, recursively."""
     out = {}
     for path in sorted(package.rglob("*.py")):
@@ -77,7 +74,7 @@ def _targets(node: ast.Import | ast.ImportFrom, module: str, is_package: bool, p
 
 def package_imports(package: Path) -> dict[str, set[str]]:
     """Module -> the package's modules it imports, anywhere in its source (folders' ``__init__``
-    count as modules: importing ``danae_lite.core`` runs ``core/__init__.py``)."""
+    count as modules: importing ``danae_lite.kalman`` runs ``kalman/__init__.py``)."""
     found = modules(package)
     graph: dict[str, set[str]] = {}
     for name, path in found.items():
@@ -128,10 +125,8 @@ def circles(graph: dict[str, set[str]]) -> list[list[str]]:
 
 
 def upward_imports(graph: dict[str, set[str]]) -> list[str]:
-    """Imports from a lower layer into a higher one, e.g. ``core kalman -> research filters``."""
-    names = (*LAYERS, "entry")
-    return [f"{names[layer(m)]} {m} -> {names[layer(d)]} {d}"
-            for m, deps in sorted(graph.items()) for d in sorted(deps) if layer(d) > layer(m)]
+    """Imports of a room listed later in :data:`ROOMS`, e.g. ``kalman.filter -> research.leaderboard``."""
+    return [f"{m} -> {d}" for m, deps in sorted(graph.items()) for d in sorted(deps) if layer(d) > layer(m)]
 
 
 def _is_environ(node: ast.AST) -> bool:
@@ -167,7 +162,7 @@ def test_no_import_circles():
     assert circles(package_imports(PACKAGE)) == []
 
 
-def test_imports_run_one_way_entry_research_core():
+def test_imports_point_down_the_package_map():
     assert upward_imports(package_imports(PACKAGE)) == []
 
 
@@ -176,30 +171,26 @@ def test_only_the_settings_module_reads_the_environment():
 
 
 def test_every_module_is_in_the_package_map():
-    """``danae_lite/__init__.py`` names every module by its full name, under its layer's heading
-    (the map a newcomer reads first)."""
+    """``danae_lite/__init__.py`` names every module by its full name (the map a newcomer reads
+    first) and holds nothing but the map and the version: no names re-exported."""
     text = (PACKAGE / "__init__.py").read_text(encoding="utf-8")
-    sections = {"core": text.index("**Core**"), "research": text.index("**Research engine**"),
-                "": text.index("**Entry points**")}
-    bounds = sorted(sections.values()) + [len(text)]
-    misplaced = []
-    for name in modules(PACKAGE):
-        if name.split(".")[-1].startswith("_") or name in LAYERS:
-            continue
-        start = sections[name.split(".")[0] if "." in name else ""]
-        part = text[start:bounds[bounds.index(start) + 1]]
-        if f"danae_lite.{name}`" not in part:
-            misplaced.append(name)
-    assert misplaced == []
+    missing = [name for name, path in modules(PACKAGE).items()
+               if path.name != "__init__.py" and not name.split(".")[-1].startswith("_")
+               and f"danae_lite.{name}`" not in text]
+    assert missing == []
+    code = [ast.unparse(n) for n in ast.parse(text).body[1:]]
+    assert code == ["from ._version import __version__"]
 
 
-def test_layers_are_the_folders():
-    """Every module sits in a layer folder or is one of the few entry points; the layer folders
-    hold nothing else (no deeper folders to hide a module in)."""
-    entry = {n for n in modules(PACKAGE) if "." not in n}
-    assert entry == {"__init__", "__main__", "book", "cli", "cli_data", "config", *LAYERS}
-    assert all(len(n.split(".")) <= 2 for n in modules(PACKAGE))
-    assert {n.split(".")[0] for n in modules(PACKAGE) if "." in n} == set(LAYERS)
+def test_rooms_are_the_map():
+    """Every module sits in a room of :data:`ROOMS`, and the rooms appear in the package map in
+    that order; no room is deeper than one sub-folder."""
+    names = modules(PACKAGE)
+    assert {n.split(".")[0] for n in names} <= set(ROOMS)
+    assert all(len(n.split(".")) <= 3 for n in names)
+    text = (PACKAGE / "__init__.py").read_text(encoding="utf-8")
+    first = {r: m.start() for r in ROOMS for m in [re.search(rf"danae_lite\.{r}[`.]", text)] if m}
+    assert sorted(first, key=first.get) == [r for r in ROOMS if r in first]
 
 
 TORCH_FREE_CHAPTERS = ("01_kalman_filter", "02_sensors_to_estimates")
@@ -235,29 +226,29 @@ def loaded_after(statements: list[str]) -> set[str]:
 def test_the_kf_chapters_and_setup_load_no_torch(stem: str):
     """Everything chapters 1-2 import, and the common ``setup()``, runs without loading torch."""
     statements = [*chapter_imports(stem), "from danae_lite.book import setup", "setup(verbose=False)"]
-    assert any("danae_lite.core" in s for s in statements)
+    assert any("danae_lite.kalman" in s for s in statements)
     loaded = loaded_after(statements)
     assert "danae_lite" in loaded and "torch" not in loaded
 
 
 def test_the_torch_probe_sees_torch_when_it_is_loaded():
     """The probe is not vacuous: a chapter that trains loads torch through the same route."""
-    assert "torch" in loaded_after(["from danae_lite.core.train import TrainConfig"])
+    assert "torch" in loaded_after(["from danae_lite.danae.train import TrainConfig"])
 
 
 @pytest.fixture
 def toy_package(tmp_path: Path) -> Path:
     pkg = tmp_path / "danae_lite"
-    for folder in (pkg, pkg / "core", pkg / "research"):
+    for folder in (pkg, pkg / "kalman", pkg / "research"):
         folder.mkdir()
         (folder / "__init__.py").write_text("")
-    (pkg / "core" / "kalman.py").write_text("def f():\n    from ..research.leaderboard import g\n")  # core -> research, late
+    (pkg / "kalman" / "filter.py").write_text("def f():\n    from ..research.leaderboard import g\n")  # kalman -> research, late
     (pkg / "research" / "leaderboard.py").write_text("from .. import cli\n")  # research -> entry
-    (pkg / "cli.py").write_text("from danae_lite.core.kalman import f\n")
-    (pkg / "core" / "windows.py").write_text(
+    (pkg / "cli.py").write_text("from danae_lite.kalman.filter import f\n")
+    (pkg / "kalman" / "windows.py").write_text(
         "import os\nfrom typing import TYPE_CHECKING\nif TYPE_CHECKING:\n    from ..cli import x\n"
         "a = os.environ.get('DANAE_FAST')\nb = os.environ[DATA_ENV]\nc = os.getenv('HOME')\n")
-    (pkg / "core" / "angles.py").write_text("from . import windows\nfrom .windows import a\n")  # same layer
+    (pkg / "kalman" / "angles.py").write_text("from . import windows\nfrom .windows import a\n")  # same layer
     return pkg
 
 
@@ -266,9 +257,8 @@ def test_the_checks_find_what_they_look_for(toy_package: Path):
     function, the upward imports (the layer read from the folder), and the two environment reads
     (not HOME, not TYPE_CHECKING); an import within a layer is neither."""
     graph = package_imports(toy_package)
-    assert graph["core.windows"] == set()  # the TYPE_CHECKING import does not count
-    assert graph["core.angles"] == {"core", "core.windows"}
-    assert circles(graph) == [["cli", "core.kalman", "research.leaderboard"]]
-    assert upward_imports(graph) == ["core core.kalman -> research research.leaderboard",
-                                     "research research.leaderboard -> entry cli"]
-    assert env_reads(toy_package) == ["core.windows:5", "core.windows:6"]
+    assert graph["kalman.windows"] == set()  # the TYPE_CHECKING import does not count
+    assert graph["kalman.angles"] == {"kalman", "kalman.windows"}
+    assert circles(graph) == [["cli", "kalman.filter", "research.leaderboard"]]
+    assert upward_imports(graph) == ["kalman.filter -> research.leaderboard", "research.leaderboard -> cli"]
+    assert env_reads(toy_package) == ["kalman.windows:5", "kalman.windows:6"]

@@ -306,7 +306,7 @@ def test_a_run_counts_the_networks_it_trained_and_loaded(tmp_path):
     src = write_notebook(
         tmp_path / "nbs" / "nets.ipynb", "# Networks",
         "from danae_lite.book import setup\ncfg = setup(verbose=False)",
-        "import numpy as np\nfrom danae_lite.core import networks\nfrom danae_lite.core.train import TrainConfig\n"
+        "import numpy as np\nfrom danae_lite.danae import networks\nfrom danae_lite.danae.train import TrainConfig\n"
         "x = [np.sin(np.linspace(0.0, 20.0, 300))]\n"
         "nets = networks.train_networks({'roll': x}, {'roll': x}, TrainConfig(max_steps=2, num_threads=1), (0, 1),"
         " cache=cfg.cache)",

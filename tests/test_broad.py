@@ -13,10 +13,11 @@ import pytest
 from scipy.io import savemat
 from scipy.spatial.transform import Rotation, Slerp
 
-from danae_lite.core import angles
-from danae_lite.research import broad, broad_benchmark
-from danae_lite.core.recording import DataError, Recording
-from danae_lite.core.simulate import MAG_REF
+from danae_lite import angles
+from danae_lite.data import broad
+from danae_lite.research import broad_benchmark
+from danae_lite.data.recording import DataError, Recording
+from danae_lite.data.simulate import MAG_REF
 
 DEG = np.pi / 180.0
 FIELD_ENU = 50.0 * np.array([0.0, np.cos(60 * DEG), -np.sin(60 * DEG)])  # µT, magnetic north = ENU y

@@ -10,10 +10,11 @@ import pandas as pd
 import pytest
 from scipy.spatial.transform import Rotation
 
-from danae_lite.research import broad, registry
+from danae_lite.data import broad
+from danae_lite.research import registry
 from danae_lite import cli
-from danae_lite.core import datasets
-from danae_lite.core.angles import quat_to_euler
+from danae_lite.data import experiments
+from danae_lite.angles import quat_to_euler
 from danae_lite.research.baselines import make_method
 from danae_lite.research.leaderboard import TRIAL_COLUMNS, run_leaderboard
 from danae_lite.research.variants import DanaeOn
@@ -102,7 +103,7 @@ def test_reproduce_refuses_broad_and_names_the_leaderboard(capsys, monkeypatch):
 
 def test_cli_broad_without_data_lets_the_simulator_stand_in(tmp_path, capsys, monkeypatch):
     monkeypatch.delenv("DANAE_DATA", raising=False)
-    monkeypatch.setitem(datasets.FAST_DURATION, "handheld", 6.0)
+    monkeypatch.setitem(experiments.FAST_DURATION, "handheld", 6.0)
     code = cli.main(["leaderboard", "--experiment", "broad", "--fast", "--methods", "paper_kf", "vqf",
                      "--out", str(tmp_path)])
     out = capsys.readouterr().out

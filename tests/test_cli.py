@@ -13,8 +13,9 @@ import pytest
 
 from conftest import synthetic_oxiod, write_rows, write_ucs
 from danae_lite import cli
-from danae_lite.core import datasets, metrics
-from danae_lite.research import oxiod_motions
+from danae_lite.data import experiments
+from danae_lite.evaluate import metrics
+from danae_lite.data import oxiod_motions
 
 # tiny runs: one seed, five optimiser steps, one torch thread, CPU
 TINY = ["--fast", "--seeds", "0", "--max-steps", "5", "--threads", "1", "--device", "cpu"]
@@ -29,8 +30,8 @@ def clean_env(monkeypatch: pytest.MonkeyPatch) -> None:
     """No real data, no fast-mode variable, and short simulated recordings."""
     monkeypatch.delenv("DANAE_DATA", raising=False)
     monkeypatch.delenv("DANAE_FAST", raising=False)
-    monkeypatch.setitem(datasets.FAST_DURATION, "handheld", 6.0)
-    monkeypatch.setitem(datasets.FAST_DURATION, "underwater", 150.0)
+    monkeypatch.setitem(experiments.FAST_DURATION, "handheld", 6.0)
+    monkeypatch.setitem(experiments.FAST_DURATION, "underwater", 150.0)
 
 
 def run(argv: list[str], capsys: pytest.CaptureFixture[str]) -> tuple[int, str, str]:

@@ -4,8 +4,8 @@ a malformed row, an empty --data-dir / --test folder, an incomplete oxiod/ folde
 duplicate seeds) and does not repeat those cases.
 
 Checkpoints: the command has no flag that takes a checkpoint. It reads checkpoints only from
-the trained-network cache (``DANAE_CACHE``): :mod:`danae_lite.core.networks` calls
-:func:`danae_lite.core.checkpoints.load_result` on a cached file; a damaged one (``CheckpointError``) is
+the trained-network cache (``DANAE_CACHE``): :mod:`danae_lite.danae.networks` calls
+:func:`danae_lite.danae.checkpoints.load_result` on a cached file; a damaged one (``CheckpointError``) is
 named in a warning and its network trained again in its place. That path is tested here by
 damaging the cache between two runs.
 """
@@ -168,7 +168,7 @@ def test_damaged_cached_checkpoint(damage: str, tmp_path: Path, monkeypatch: pyt
     assert all(str(f) in named for f in files) and "checkpoint" in named and "trained again" in named
     # each damaged file is replaced by the same network, trained again (training is deterministic)
     assert sorted((cache / "fast").glob("*.pt")) == files
-    from danae_lite.core.checkpoints import load_result
+    from danae_lite.danae.checkpoints import load_result
     for f in files:
         assert load_result(f).best_step >= 0
 

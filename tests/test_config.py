@@ -1,6 +1,6 @@
 import pytest
 
-from danae_lite.config import data_dir, fast_mode
+from danae_lite.runtime import data_dir, fast_mode
 
 
 def test_fast_mode_values(monkeypatch):
@@ -28,7 +28,7 @@ def test_data_dir(monkeypatch, tmp_path):
 
 
 def test_cache_defaults_to_the_user_cache_folder_and_can_be_turned_off(monkeypatch, tmp_path):
-    from danae_lite.config import RunSettings, cache_dir
+    from danae_lite.runtime import RunSettings, cache_dir
 
     monkeypatch.delenv("DANAE_CACHE", raising=False)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path / "xdg"))  # platformdirs' Linux convention
@@ -42,7 +42,7 @@ def test_cache_defaults_to_the_user_cache_folder_and_can_be_turned_off(monkeypat
 
 
 def test_full_and_fast_networks_are_kept_apart_each_capped(monkeypatch, tmp_path):
-    from danae_lite.config import DEFAULT_CACHE_GB, RunSettings, kernel_environment
+    from danae_lite.runtime import DEFAULT_CACHE_GB, RunSettings, kernel_environment
 
     monkeypatch.setenv("DANAE_CACHE", str(tmp_path))
     monkeypatch.delenv("DANAE_CACHE_GB", raising=False)
@@ -60,7 +60,7 @@ def test_full_and_fast_networks_are_kept_apart_each_capped(monkeypatch, tmp_path
 
 @pytest.mark.parametrize("bad", ["0", "-1", "lots", "inf"])
 def test_cache_cap_must_be_a_positive_size(monkeypatch, bad):
-    from danae_lite.config import cache_gb
+    from danae_lite.runtime import cache_gb
 
     monkeypatch.setenv("DANAE_CACHE_GB", bad)
     with pytest.raises(ValueError, match=f"DANAE_CACHE_GB='{bad}'"):
@@ -69,8 +69,8 @@ def test_cache_cap_must_be_a_positive_size(monkeypatch, bad):
 
 
 def test_fast_mode_caps_steps_and_epochs_only():
-    from danae_lite.config import FAST_EPOCHS, FAST_MAX_STEPS, RunSettings
-    from danae_lite.core.train import TrainConfig
+    from danae_lite.runtime import FAST_EPOCHS, FAST_MAX_STEPS, RunSettings
+    from danae_lite.danae.train import TrainConfig
 
     base = TrainConfig(epochs=5)
     full = RunSettings(fast=False).train_config(base)

@@ -5,9 +5,10 @@ import pandas as pd
 import pytest
 
 from danae_lite.research import crossval
-from danae_lite.core import datasets, metrics, simulate
+from danae_lite.data import experiments, simulate
+from danae_lite.evaluate import metrics
 from danae_lite.research.leaderboard import run_leaderboard
-from danae_lite.core.train import TrainConfig
+from danae_lite.danae.train import TrainConfig
 
 
 @pytest.fixture(scope="module")
@@ -47,7 +48,7 @@ def test_rows_cover_every_split_recording_method_and_angle(cv):
 
 def test_a_row_is_the_leaderboard_of_its_split_on_that_recording(cv, motions):
     # the in-motion split holding out h1, recomputed with the leaderboard on that single split
-    exp = datasets.Experiment("oxiod", "simulated", [motions["handheld"][0], motions["handheld"][2]],
+    exp = experiments.Experiment("oxiod", "simulated", [motions["handheld"][0], motions["handheld"][2]],
                               [motions["handheld"][1]], "check")
     board = run_leaderboard(exp, methods=("paper_kf", "danae"), seeds=(0, 1),
                             train_config=TrainConfig(max_steps=3, num_threads=1), progress=False)

@@ -4,10 +4,11 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from danae_lite import DataError
-from danae_lite.core import datasets
-from danae_lite.core.datasets import Experiment, load_experiment, oxiod_root, ucs_file
-from danae_lite.core.oxiod import load_recording
+from danae_lite.data.recording import DataError
+from danae_lite.data import experiments
+from danae_lite.data.experiments import (Experiment, load_experiment, oxiod_root,
+                                         ucs_file)
+from danae_lite.data.oxiod import load_recording
 
 from conftest import write_ucs
 
@@ -30,7 +31,7 @@ def test_real_oxiod_split(tmp_oxiod, capsys):
 
 def test_real_oxiod_from_environment_through_the_settings(tmp_oxiod, monkeypatch, capsys):
     """An entry point reads DANAE_DATA (config.data_dir) and passes the folder down."""
-    from danae_lite.config import data_dir
+    from danae_lite.runtime import data_dir
 
     monkeypatch.setenv("DANAE_DATA", str(tmp_oxiod.data_dir))
     exp = load_experiment("oxiod", data_dir(), fast=False, verbose=False)
@@ -39,7 +40,7 @@ def test_real_oxiod_from_environment_through_the_settings(tmp_oxiod, monkeypatch
 
 
 def test_fast_mode_truncates_real_oxiod(tmp_oxiod, monkeypatch):
-    monkeypatch.setattr(datasets, "FAST_SAMPLES", 50)
+    monkeypatch.setattr(experiments, "FAST_SAMPLES", 50)
     exp = load_experiment("oxiod", tmp_oxiod.data_dir, fast=True, verbose=False)
     full = load_recording(tmp_oxiod.syn / "imu3.csv")
     rec = exp.train[0]
@@ -87,15 +88,15 @@ def test_library_functions_never_read_the_environment(monkeypatch, tmp_oxiod):
 
 
 def test_simulated_oxiod_when_no_data(capsys):
-    from danae_lite.core.simulate import simulate
+    from danae_lite.data.simulate import simulate
 
     exp = load_experiment("oxiod", fast=True, seed=3)
     assert (exp.name, exp.data) == ("oxiod", "simulated")
     assert [r.name for r in exp.test] == ["sim-handheld-0"]
     assert [r.name for r in exp.train] == ["sim-handheld-1", "sim-handheld-2", "sim-handheld-3"]
     assert [r.meta["seed"] for r in exp.test + exp.train] == [3, 4, 5, 6]
-    assert all(len(r) == 100 * datasets.FAST_DURATION["handheld"] and r.fs == 100.0 for r in exp.train + exp.test)
-    reference = simulate("handheld", duration=datasets.FAST_DURATION["handheld"], seed=4)
+    assert all(len(r) == 100 * experiments.FAST_DURATION["handheld"] and r.fs == 100.0 for r in exp.train + exp.test)
+    reference = simulate("handheld", duration=experiments.FAST_DURATION["handheld"], seed=4)
     np.testing.assert_array_equal(exp.train[0].gyro, reference.gyro)
     assert "(no data directory given)" in exp.note and "handheld simulator stands in" in exp.note
     assert capsys.readouterr().out.strip() == exp.note
@@ -110,11 +111,11 @@ def test_simulated_ucs_in_empty_data_dir(tmp_path):
     exp = load_experiment("ucs", tmp_path, fast=True, verbose=False)
     assert (exp.name, exp.data) == ("ucs", "simulated")
     (train,), (test,) = exp.train, exp.test
-    n = int(10 * datasets.FAST_DURATION["underwater"])  # samples at 10 Hz, split 80/20
+    n = int(10 * experiments.FAST_DURATION["underwater"])  # samples at 10 Hz, split 80/20
     assert (len(train), len(test), train.fs) == (0.8 * n, 0.2 * n, 10.0)
-    from danae_lite.core.simulate import simulate
+    from danae_lite.data.simulate import simulate
 
-    full = simulate("underwater", duration=datasets.FAST_DURATION["underwater"], seed=0)
+    full = simulate("underwater", duration=experiments.FAST_DURATION["underwater"], seed=0)
     np.testing.assert_array_equal(np.r_[train.acc, test.acc], full.acc)
     np.testing.assert_array_equal(test.meta["true_acc"], full.meta["true_acc"][len(train):])
     assert f"under {tmp_path}" in exp.note and "underwater simulator" in exp.note
@@ -133,7 +134,7 @@ def test_missing_explicit_data_dir(tmp_path):
 def test_simulated_experiment_ignores_real_data(monkeypatch, tmp_path):
     (tmp_path / "oxiod").mkdir()
     monkeypatch.setenv("DANAE_DATA", str(tmp_path))
-    from danae_lite.core.datasets import simulated_experiment
+    from danae_lite.data.experiments import simulated_experiment
 
     exp = simulated_experiment("oxiod", fast=True, verbose=False)
     assert exp.data == "simulated" and [r.name for r in exp.test] == ["sim-handheld-0"]

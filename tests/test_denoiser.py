@@ -4,14 +4,14 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from danae_lite.core.angles import wrap
-from danae_lite.core.datasets import Experiment
-from danae_lite.research.denoiser import (GATE_GAINS, DanaeRes, DenoiserStream, filter_error, level_offsets,
-                                 shift_levels)
+from danae_lite.angles import wrap
+from danae_lite.data.experiments import Experiment
+from danae_lite.research.danae_res import (GATE_GAINS, DanaeRes, DenoiserStream,
+                                           filter_error, level_offsets, shift_levels)
 from danae_lite.research.features import multi_input, run_network, to_circle
 from danae_lite.research.leaderboard import run_leaderboard
-from danae_lite.core.simulate import simulate
-from danae_lite.core.train import TrainConfig
+from danae_lite.data.simulate import simulate
+from danae_lite.danae.train import TrainConfig
 from danae_lite.research.variants import validation_block
 
 

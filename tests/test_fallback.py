@@ -1,16 +1,16 @@
-"""DANAE-res with a per-sample fallback and an error bar (danae_lite.research.fallback)."""
+"""DANAE-res with a per-sample fallback and an error bar (danae_lite.research.danae_safe)."""
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from danae_lite.core.datasets import Experiment
-from danae_lite.core.simulate import simulate
-from danae_lite.core.train import TrainConfig
+from danae_lite.data.experiments import Experiment
+from danae_lite.data.simulate import simulate
+from danae_lite.danae.train import TrainConfig
 from danae_lite.research import crossval
-from danae_lite.research.denoiser import filter_error
-from danae_lite.research.fallback import (POLICIES, RISK_BINS, DanaeSafe, SafeStream, alpha_of, calibrate_angle,
-                                          ema)
+from danae_lite.research.danae_res import filter_error
+from danae_lite.research.danae_safe import (POLICIES, RISK_BINS, DanaeSafe, SafeStream,
+                                            alpha_of, calibrate_angle, ema)
 from danae_lite.research.leaderboard import run_leaderboard
 from danae_lite.research.registry import is_method_name, make_method
 

@@ -7,11 +7,12 @@ import pytest
 from scipy import signal
 from scipy.spatial.transform import Rotation
 
-from danae_lite.research import baselines, filters
-from danae_lite.core.alignment import FrameAlignment
-from danae_lite.core.angles import angle_diff
-from danae_lite.core.recording import Recording
-from danae_lite.core.simulate import MAG_REF
+from danae_lite.research import baselines
+from danae_lite.research.ahrs import filters
+from danae_lite.data.alignment import FrameAlignment
+from danae_lite.angles import angle_diff
+from danae_lite.data.recording import Recording
+from danae_lite.data.simulate import MAG_REF
 
 FS = 100.0
 
@@ -130,7 +131,7 @@ def test_kf_baselines_on_a_static_pose(method):
     # the accelerometer roll formula of the paper is exact only at zero pitch: asin(sin(roll) cos(pitch))
     # and the heading is tilt-compensated with that roll: the KF converges to the measurements
     roll_acc = np.arcsin(np.sin(STATIC[0]) * np.cos(STATIC[1]))
-    from danae_lite.core.kalman import mag_heading
+    from danae_lite.kalman.filter import mag_heading
 
     yaw_mag = float(mag_heading(recs[0].mag[:1], roll_acc, STATIC[1])[0])
     assert abs(yaw_mag - STATIC[2]) > 1e-3  # the measurement itself is biased by the roll formula
@@ -141,7 +142,7 @@ def test_kf_baselines_on_a_static_pose(method):
 
 def _total_error_rmse(est_by_name, recs, ctx):
     """Total-rotation RMSE [rad] from quaternion dot products (independent of total_objective)."""
-    from danae_lite.core.angles import euler_to_quat
+    from danae_lite.angles import euler_to_quat
 
     angles = []
     for r in recs:
@@ -153,7 +154,7 @@ def _total_error_rmse(est_by_name, recs, ctx):
 
 
 def test_tuned_kf_searches_jointly_and_beats_the_paper_kf_on_training_data():
-    from danae_lite.core.simulate import simulate
+    from danae_lite.data.simulate import simulate
 
     recs = [simulate("handheld", duration=30.0, seed=s) for s in (1, 2)]
     ctx = _ctx(recs)
@@ -170,9 +171,9 @@ def test_tuned_kf_searches_jointly_and_beats_the_paper_kf_on_training_data():
 
 
 def test_constant_is_the_training_mean_and_the_smoother_smooths_the_tuned_kf():
-    from danae_lite.core import kalman
-    from danae_lite.research import kf_offline
-    from danae_lite.core.simulate import simulate
+    from danae_lite.kalman import filter as kalman
+    from danae_lite.kalman import offline
+    from danae_lite.data.simulate import simulate
 
     recs = [simulate("handheld", duration=30.0, seed=s) for s in (1, 2)]
     ctx = _ctx(recs)
@@ -181,7 +182,7 @@ def test_constant_is_the_training_mean_and_the_smoother_smooths_the_tuned_kf():
     np.testing.assert_allclose(const.predict(recs[0])[0][5], [e[:, 0].mean(), e[:, 1].mean(),
                                                               np.angle(np.exp(1j * e[:, 2]).mean())])
     rts = ctx.method("tuned_kf_rts")
-    smooth = kf_offline.rts_smooth(kalman.run_kf(recs[0], ctx.method("tuned_kf").config))
+    smooth = offline.rts_smooth(kalman.run_kf(recs[0], ctx.method("tuned_kf").config))
     got = rts.predict(recs[0])[0]
     np.testing.assert_allclose(got[:, :2], smooth[:, [0, 2]], atol=1e-12)
     assert not rts.causal and const.causal and ctx.method("tuned_kf").causal
@@ -228,7 +229,7 @@ def test_linear_map_recovers_a_known_linear_corruption_exactly():
 
 @pytest.mark.parametrize("name", ["fusion", "vqf", "madgwick", "mahony"])
 def test_every_value_of_each_joint_grid_runs_and_the_minimum_is_chosen(name):
-    from danae_lite.core.simulate import simulate
+    from danae_lite.data.simulate import simulate
 
     recs = [simulate("handheld", duration=5.0, seed=1)]
     m = baselines.make_method(name).fit(_ctx(recs))

@@ -1,4 +1,4 @@
-"""The matrix-product convolutions of :mod:`danae_lite.core.gemm_conv` against torch's own.
+"""The matrix-product convolutions of :mod:`danae_lite.danae.gemm_conv` against torch's own.
 
 The reference is ``torch.nn.functional.conv1d`` / ``conv_transpose1d`` on the same
 parameters. In float64 the two differ only by the order of the sums (~1e-15 relative); in
@@ -11,8 +11,9 @@ import pytest
 import torch
 from torch.nn import functional as F
 
-from danae_lite.core.gemm_conv import ChannelsLastConv1d, ChannelsLastConvTranspose1d, gather, scatter, tap_offsets
-from danae_lite.core.model import DanaeBig, DanaePaper
+from danae_lite.danae.gemm_conv import (ChannelsLastConv1d, ChannelsLastConvTranspose1d,
+                                        gather, scatter, tap_offsets)
+from danae_lite.danae.model import DanaeBig, DanaePaper
 
 # (C_in, C_out, kernel, dilation, padding, length): the paper net's layers and odd ones
 SHAPES = [(1, 8, 3, 1, 1, 20), (8, 8, 3, 3, 1, 20), (8, 8, 3, 6, 1, 12), (8, 3, 4, 1, 0, 9),

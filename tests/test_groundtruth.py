@@ -8,9 +8,10 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from danae_lite.core.groundtruth import GlitchReport, clean_mask, detect_glitches, glitch_table
-from danae_lite.core.oxiod import gt_glitch_summary, load_recording
-from danae_lite.core.recording import Recording
+from danae_lite.data.groundtruth import (GlitchReport, clean_mask, detect_glitches,
+                                         glitch_table)
+from danae_lite.data.oxiod import gt_glitch_summary, load_recording
+from danae_lite.data.recording import Recording
 
 FS = 100.0
 KICK = Rotation.from_euler("x", 0.5)  # a 0.5 rad glitch: 50 rad/s at 100 Hz

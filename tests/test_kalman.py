@@ -15,20 +15,11 @@ import pytest
 import scipy.linalg
 from scipy.spatial.transform import Rotation
 
-from danae_lite.core.kalman import (
-    AUTHORS_DT,
-    KFConfig,
-    accel_tilt,
-    euler_rates,
-    gain_sequence,
-    kalman_filter,
-    kf_step,
-    mag_heading,
-    run_kf,
-    steady_state,
-    system_matrices,
-)
-from danae_lite.core.recording import Recording
+from danae_lite.kalman.filter import (AUTHORS_DT, KFConfig, accel_tilt, euler_rates,
+                                      gain_sequence, kalman_filter, kf_step,
+                                      mag_heading, run_kf, steady_state,
+                                      system_matrices)
+from danae_lite.data.recording import Recording
 
 from conftest import assert_close_scaled
 
@@ -413,7 +404,7 @@ def test_short_recording_without_convergence_matches_naive():
 
 
 def test_simulated_recording_block_equals_naive():
-    sim = pytest.importorskip("danae_lite.core.simulate")
+    sim = pytest.importorskip("danae_lite.data.simulate")
     rec = sim.simulate("handheld", duration=3.0, seed=2)
     cfg = KFConfig.authors()
     res = run_kf(rec, cfg)
@@ -471,30 +462,30 @@ def test_filter_input_validation():
 def test_remembered_blocks_give_exactly_the_gains_of_a_fresh_run():
     """The block recursion is remembered per (P0, Q, R, dt) block and serves other lengths:
     every answer must equal, bit for bit, what the recursion gives from scratch."""
-    from danae_lite.core import kf_gains
+    from danae_lite.kalman import gains
 
     cfg = KFConfig(Q=[1e-4, 1e-6, 1e-4, 1e-6, 1e-3, 1e-6])
     dt = 0.01
 
     def fresh(n_max):
-        kf_gains._GAIN_CACHE.clear()
-        kf_gains._BLOCK_CACHE.clear()
-        return kf_gains.gain_sequence(dt, cfg, n_max=n_max, method="block")
+        gains._GAIN_CACHE.clear()
+        gains._BLOCK_CACHE.clear()
+        return gains.gain_sequence(dt, cfg, n_max=n_max, method="block")
 
     full = fresh(100_000)
     assert full.converged and 100 < len(full) < 100_000
     for n_max in (7, len(full) - 1, len(full), len(full) + 50):
         expected = fresh(n_max)
-        kf_gains._GAIN_CACHE.clear()  # keep the remembered blocks of a longer run
-        kf_gains._BLOCK_CACHE.clear()
-        kf_gains.gain_sequence(dt, cfg, n_max=100_000, method="block")
-        kf_gains._GAIN_CACHE.clear()
-        got = kf_gains.gain_sequence(dt, cfg, n_max=n_max, method="block")
+        gains._GAIN_CACHE.clear()  # keep the remembered blocks of a longer run
+        gains._BLOCK_CACHE.clear()
+        gains.gain_sequence(dt, cfg, n_max=100_000, method="block")
+        gains._GAIN_CACHE.clear()
+        got = gains.gain_sequence(dt, cfg, n_max=n_max, method="block")
         assert got.converged == expected.converged == (n_max >= len(full))
         np.testing.assert_array_equal(got.K, expected.K)
         np.testing.assert_array_equal(got.P_post, expected.P_post)
     # a short run first, then a longer request: computed again, not served from the short one
     fresh(7)
-    kf_gains._GAIN_CACHE.clear()
-    again = kf_gains.gain_sequence(dt, cfg, n_max=100_000, method="block")
+    gains._GAIN_CACHE.clear()
+    again = gains.gain_sequence(dt, cfg, n_max=100_000, method="block")
     np.testing.assert_array_equal(again.K, full.K)

@@ -15,9 +15,10 @@ import pytest
 import scipy.linalg
 from scipy import stats
 
-from danae_lite.core.kalman import KFConfig, KFResult, gain_sequence, run_kf, system_matrices
-from danae_lite.research.kf_offline import Innovations, innovations
-from danae_lite.core.simulate import simulate
+from danae_lite.kalman.filter import (KFConfig, KFResult, gain_sequence, run_kf,
+                                      system_matrices)
+from danae_lite.kalman.offline import Innovations, innovations
+from danae_lite.data.simulate import simulate
 
 TUNED = dict(
     P0=np.diag([0.5, 0.01, 0.4, 0.02, 1.0, 0.03]),

@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from danae_lite.core import kalman
-from danae_lite.research import kf_offline
-from danae_lite.core.angles import wrap
-from danae_lite.core.simulate import simulate
+from danae_lite.kalman import filter as kalman
+from danae_lite.kalman import offline
+from danae_lite.angles import wrap
+from danae_lite.data.simulate import simulate
 
 
 def batch_smoother(res: kalman.KFResult) -> np.ndarray:
@@ -45,7 +45,7 @@ def test_rts_matches_the_batch_least_squares_solution(q):
     rec = simulate("handheld", duration=0.6, seed=3).slice(0, 40)
     cfg = kalman.KFConfig(Q=[q, q * 1e-2] * 3, R=[0.5, 0.5, 2.0], init_from_truth=False)
     res = kalman.run_kf(rec, cfg)
-    smooth = kf_offline.rts_smooth(res)
+    smooth = offline.rts_smooth(res)
     ref = batch_smoother(res)
     scale = np.abs(ref).max()
     np.testing.assert_allclose(smooth, ref, atol=1e-9 * scale)
@@ -57,7 +57,7 @@ def test_rts_matches_the_batch_least_squares_solution(q):
 def test_rts_beats_the_filter_on_a_long_recording():
     rec = simulate("handheld", duration=60.0, seed=1)
     res = kalman.run_kf(rec, kalman.KFConfig(Q=[1e-5, 1e-10] * 3))
-    smooth = kf_offline.rts_smooth(res)
+    smooth = offline.rts_smooth(res)
     err_f = np.sqrt(np.mean(wrap(res.euler[:, :2] - rec.euler[:, :2]) ** 2))
     err_s = np.sqrt(np.mean(wrap(smooth[:, [0, 2]] - rec.euler[:, :2]) ** 2))
     assert err_s < err_f

@@ -12,10 +12,11 @@ import itertools
 import numpy as np
 import pytest
 
-from danae_lite.research import baselines, kf_grid, methods
-from danae_lite.core import kalman
-from danae_lite.core.alignment import FrameAlignment
-from danae_lite.core.simulate import simulate
+from danae_lite.research import baselines, methods
+from danae_lite.kalman import grid
+from danae_lite.kalman import filter as kalman
+from danae_lite.data.alignment import FrameAlignment
+from danae_lite.data.simulate import simulate
 
 ATOL = 1e-9  # rad, see the module docstring
 
@@ -39,7 +40,7 @@ def _grid():
 def test_grid_equals_one_setting_at_a_time(recs, make):
     configs = make()
     rec = recs[0]
-    got = kf_grid.run_kf_grid(rec, configs)
+    got = grid.run_kf_grid(rec, configs)
     assert got.shape == (len(configs), len(rec), 3)
     for k, cfg in enumerate(configs):
         np.testing.assert_allclose(got[k], kalman.run_kf(rec, cfg).euler, rtol=0, atol=ATOL)
@@ -47,13 +48,13 @@ def test_grid_equals_one_setting_at_a_time(recs, make):
 
 def test_grid_rejects_settings_it_cannot_share(recs):
     with pytest.raises(ValueError, match="empty"):
-        kf_grid.run_kf_grid(recs[0], [])
+        grid.run_kf_grid(recs[0], [])
     with pytest.raises(ValueError, match=r"configs\[1\]\.wrap_yaw_innovation"):
-        kf_grid.run_kf_grid(recs[0], [kalman.KFConfig(), kalman.KFConfig(wrap_yaw_innovation=True)])
+        grid.run_kf_grid(recs[0], [kalman.KFConfig(), kalman.KFConfig(wrap_yaw_innovation=True)])
     full = np.eye(6)
     full[0, 2] = full[2, 0] = 0.1
     with pytest.raises(ValueError, match=r"configs\[0\] is not block-diagonal"):
-        kf_grid.run_kf_grid(recs[0], [kalman.KFConfig(Q=full)])
+        grid.run_kf_grid(recs[0], [kalman.KFConfig(Q=full)])
 
 
 def test_scores_are_the_objectives_of_each_setting(recs):
@@ -61,7 +62,7 @@ def test_scores_are_the_objectives_of_each_setting(recs):
     clean = {r.name: np.arange(len(r)) % 7 != 3 for r in recs}
     align = FrameAlignment.identity()
     north = 0.4
-    scores = kf_grid.score_kf_grid(configs, recs, clean, north_yaw=north)
+    scores = grid.score_kf_grid(configs, recs, clean, north_yaw=north)
     ctx = baselines.Context(train=list(recs), clean=clean, alignment=align)
     for k, cfg in enumerate(configs):
         est = {}
@@ -73,16 +74,16 @@ def test_scores_are_the_objectives_of_each_setting(recs):
         assert scores.total[k] == pytest.approx(methods.total_error_rmse(est, recs, clean), rel=1e-9)
         np.testing.assert_allclose(scores.per_angle[k], methods.train_objective(est, ctx, (0, 1, 2)), rtol=1e-9)
     # several passes (a small memory cap) score exactly what one pass does
-    small = kf_grid.score_kf_grid(configs, recs, clean, north_yaw=north, max_bytes=24 * len(recs[0]) * 5)
+    small = grid.score_kf_grid(configs, recs, clean, north_yaw=north, max_bytes=24 * len(recs[0]) * 5)
     np.testing.assert_array_equal(small.total, scores.total)
     np.testing.assert_array_equal(small.per_angle, scores.per_angle)
 
 
 def test_scores_name_a_bad_clean_mask(recs):
     with pytest.raises(ValueError, match=r"clean\['.*'\] has shape \(3,\)"):
-        kf_grid.score_kf_grid(_grid()[:1], recs[:1], {recs[0].name: np.ones(3, bool)})
+        grid.score_kf_grid(_grid()[:1], recs[:1], {recs[0].name: np.ones(3, bool)})
     with pytest.raises(ValueError, match="no clean sample"):
-        kf_grid.score_kf_grid(_grid()[:1], recs[:1], {recs[0].name: np.zeros(len(recs[0]), bool)})
+        grid.score_kf_grid(_grid()[:1], recs[:1], {recs[0].name: np.zeros(len(recs[0]), bool)})
 
 
 def test_the_tuned_kf_search_is_scored_once_and_found_again(recs, monkeypatch):
@@ -93,8 +94,8 @@ def test_the_tuned_kf_search_is_scored_once_and_found_again(recs, monkeypatch):
     baselines.searches.clear()
     first = baselines.TunedKF().fit(ctx)
     calls = []
-    score = kf_grid.score_kf_grid
-    monkeypatch.setattr(kf_grid, "score_kf_grid", lambda *a, **k: calls.append(1) or score(*a, **k))
+    score = grid.score_kf_grid
+    monkeypatch.setattr(grid, "score_kf_grid", lambda *a, **k: calls.append(1) or score(*a, **k))
     again = baselines.TunedKF().fit(ctx)
     assert calls == [] and again.params == first.params
     assert again.search.equals(first.search)

@@ -8,12 +8,12 @@ import pandas as pd
 import pytest
 
 from danae_lite import cli
-from danae_lite.core import metrics
+from danae_lite.evaluate import metrics
 from danae_lite.research.baselines import METHODS
-from danae_lite.core.datasets import Experiment
+from danae_lite.data.experiments import Experiment
 from danae_lite.research.leaderboard import CSV_COLUMNS, run_leaderboard
-from danae_lite.core.simulate import simulate
-from danae_lite.core.train import TrainConfig
+from danae_lite.data.simulate import simulate
+from danae_lite.danae.train import TrainConfig
 
 
 @pytest.fixture(scope="module")
@@ -63,7 +63,7 @@ def test_plot_draws_the_table_linear_in_method_colours_hatching_what_looks_ahead
     import matplotlib.colors as mcolors
     import matplotlib.pyplot as plt
 
-    from danae_lite.core.plots import method_color
+    from danae_lite.plots import method_color
 
     fig = board.plot("clean")
     w = board.wide("rmse", "clean").astype(float)
@@ -130,10 +130,10 @@ def test_cli_leaderboard_errors(tmp_path, capsys):
 def test_the_papers_danae_lists_the_networks_its_fit_trains(tmp_path):
     """Danae.network_jobs: the jobs of its fit (one per angle and seed), so that a pooled
     leaderboard finds every one of its networks in the cache afterwards."""
-    from danae_lite.core import networks
+    from danae_lite.danae import networks
     from danae_lite.research.baselines import Danae
     from danae_lite.research.leaderboard import _context
-    from danae_lite.core.groundtruth import clean_mask
+    from danae_lite.data.groundtruth import clean_mask
 
     recs = [simulate("handheld", duration=6.0, seed=s, name=f"j{s}") for s in range(3)]
     exp = Experiment("oxiod", "simulated", recs[1:], recs[:1], "jobs")

@@ -4,7 +4,7 @@ import os
 import numpy as np
 import pytest
 
-from danae_lite.core.train import TrainConfig, train
+from danae_lite.danae.train import TrainConfig, train
 from danae_lite.research import features, memo
 from danae_lite.research.memo import RunMemo, RunStore, digest
 
@@ -25,7 +25,7 @@ def test_digest_follows_content_dtype_and_shape_not_memory():
 
 
 def test_the_memo_drops_the_least_recently_used_past_its_cap():
-    memo = RunMemo(max_bytes=3 * 800, code_of="danae_lite.research.filters")
+    memo = RunMemo(max_bytes=3 * 800, code_of="danae_lite.research.ahrs.filters")
     for k in range(3):
         memo.put(("run", k), np.full((100, 1), float(k)))
     assert memo.get(("run", 0)) is not None  # 0 used last: 1 is now the oldest
@@ -53,7 +53,7 @@ def test_a_network_run_twice_is_computed_once_and_equal():
 
 
 def test_inside_bypassed_every_run_is_computed_and_nothing_stored():
-    memo = RunMemo(max_bytes=10_000, code_of="danae_lite.research.filters")
+    memo = RunMemo(max_bytes=10_000, code_of="danae_lite.research.ahrs.filters")
     memo.put(("run", 0), np.zeros(10))
     with memo.bypassed():
         assert memo.get(("run", 0)) is None      # computed afresh, as a timing needs
@@ -72,9 +72,9 @@ def store(tmp_path):
 
 
 def test_a_run_stored_on_disk_is_found_by_a_fresh_memo_of_the_same_code(store):
-    first = RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.filters")
+    first = RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.ahrs.filters")
     first.put(("run", 1), np.arange(6.0).reshape(3, 2))
-    later = RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.filters")  # another process
+    later = RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.ahrs.filters")  # another process
     np.testing.assert_array_equal(later.get(("run", 1)), np.arange(6.0).reshape(3, 2))
     assert later.get(("run", 2)) is None
     other_code = RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.features")
@@ -82,15 +82,15 @@ def test_a_run_stored_on_disk_is_found_by_a_fresh_memo_of_the_same_code(store):
     with later.bypassed():
         assert later.get(("run", 1)) is None
     memo.use_store(None)
-    assert RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.filters").get(("run", 1)) is None
+    assert RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.ahrs.filters").get(("run", 1)) is None
 
 
 def test_a_damaged_stored_run_counts_as_missing_and_is_removed(store):
-    m = RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.filters")
+    m = RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.ahrs.filters")
     m.put(("run", 1), np.ones(100))
     (f,) = store.folder.glob("*.npy")
     f.write_bytes(f.read_bytes()[:50])                  # cut short, as by a full disk
-    assert RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.filters").get(("run", 1)) is None
+    assert RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.ahrs.filters").get(("run", 1)) is None
     assert not f.exists()
 
 
@@ -106,19 +106,19 @@ def test_the_store_removes_the_least_recently_used_runs_past_its_cap(tmp_path):
 
 
 def test_code_fingerprint_follows_the_code_the_runs_import_and_nothing_else(monkeypatch):
-    before = memo.code_fingerprint("danae_lite.research.filters")
-    ours, theirs = memo._import_closure("danae_lite.research.filters")
-    assert {"danae_lite.research.filters", "danae_lite.research.ahrs_grid", "danae_lite.core.angles"} <= ours
+    before = memo.code_fingerprint("danae_lite.research.ahrs.filters")
+    ours, theirs = memo._import_closure("danae_lite.research.ahrs.filters")
+    assert {"danae_lite.research.ahrs.filters", "danae_lite.research.ahrs.grid", "danae_lite.angles"} <= ours
     assert "danae_lite.research.crossval" not in ours and "danae_lite.book" not in ours
     assert {"ahrs", "vqf", "imufusion", "riann", "numpy", "scipy"} <= theirs
-    from danae_lite.core import networks
+    from danae_lite.danae import networks
 
     read = networks.module_code
     for module, changes in (("danae_lite.research.crossval", False), ("danae_lite.research.memo", False),
-                            ("danae_lite.research.ahrs_grid", True)):
+                            ("danae_lite.research.ahrs.grid", True)):
         memo.code_fingerprint.cache_clear()
         monkeypatch.setattr(networks, "module_code", lambda name: read(name) + (b"\n_EDIT = 1\n" if name == module else b""))
-        assert (memo.code_fingerprint("danae_lite.research.filters") != before) is changes, module
+        assert (memo.code_fingerprint("danae_lite.research.ahrs.filters") != before) is changes, module
     memo.code_fingerprint.cache_clear()
 
 

@@ -7,20 +7,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from danae_lite.core.metrics import (
-    METRICS,
-    PAPER,
-    PAPER_CLAIMED_RMSE_REDUCTION,
-    compare_with_paper,
-    errors,
-    max_dev,
-    mean_dev,
-    metric_table,
-    paper_rmse_reduction,
-    paper_table,
-    rmse,
-    rmse_reduction,
-)
+from danae_lite.evaluate.metrics import (METRICS, PAPER, PAPER_CLAIMED_RMSE_REDUCTION,
+                                         compare_with_paper, errors, max_dev, mean_dev,
+                                         metric_table, paper_rmse_reduction,
+                                         paper_table, rmse, rmse_reduction)
 
 TWO_PI = 2 * math.pi
 # three samples; yaw crosses +-pi in the first two
@@ -147,7 +137,7 @@ def test_compare_with_paper_layout():
 
 
 def _wrapped_rms(err, c):
-    from danae_lite.core.angles import wrap
+    from danae_lite.angles import wrap
     return float(np.sqrt(np.mean(wrap(np.asarray(err) - c) ** 2)))
 
 
@@ -157,7 +147,7 @@ def test_best_constant_offset_is_the_minimum_scipy_finds(seed):
     # of the circle (the wrapped RMS is piecewise smooth), the best of them kept
     from scipy.optimize import minimize_scalar
 
-    from danae_lite.core.metrics import best_constant_offset
+    from danae_lite.evaluate.metrics import best_constant_offset
 
     rng = np.random.default_rng(seed)
     # spread, skewed, two-cluster errors: where a circular mean is not the RMS minimiser
@@ -175,7 +165,7 @@ def test_best_constant_offset_is_the_minimum_scipy_finds(seed):
 
 
 def test_best_constant_offset_simple_cases():
-    from danae_lite.core.metrics import best_constant_offset
+    from danae_lite.evaluate.metrics import best_constant_offset
 
     # a constant error is removed exactly; a cluster around ±π is found across the cut
     assert best_constant_offset(np.full(10, 0.7)) == (pytest.approx(0.7), pytest.approx(0.0, abs=1e-12))

@@ -3,15 +3,8 @@ import numpy as np
 import pytest
 import torch
 
-from danae_lite.core.model import (
-    ARCHITECTURES,
-    DanaeBig,
-    DanaePaper,
-    build_model,
-    count_parameters,
-    layer_table,
-    receptive_field,
-)
+from danae_lite.danae.model import (ARCHITECTURES, DanaeBig, DanaePaper, build_model,
+                                    count_parameters, layer_table, receptive_field)
 
 
 pytestmark = pytest.mark.usefixtures("one_torch_thread")
@@ -37,7 +30,7 @@ def big_params(c_in: int, c_out: int, h: int) -> int:
 
 
 def test_registry():
-    from danae_lite.core.model import DanaeCausal
+    from danae_lite.danae.model import DanaeCausal
 
     assert ARCHITECTURES == {"paper": DanaePaper, "big": DanaeBig, "causal": DanaeCausal}
     assert isinstance(build_model("paper"), DanaePaper)

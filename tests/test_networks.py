@@ -1,4 +1,4 @@
-"""danae_lite.core.networks: the one training path (per head and seed), its cache and its worker processes."""
+"""danae_lite.danae.networks: the one training path (per head and seed), its cache and its worker processes."""
 import os
 import pathlib
 
@@ -6,9 +6,11 @@ import numpy as np
 import pytest
 import torch
 
-from danae_lite.core import networks, pipeline, simulate
-from danae_lite.core.inference import predict
-from danae_lite.core.train import TrainConfig
+from danae_lite.danae import networks
+from danae_lite.paper import pipeline
+from danae_lite.data import simulate
+from danae_lite.danae.predict import predict
+from danae_lite.danae.train import TrainConfig
 
 
 @pytest.fixture(scope="module")
@@ -30,7 +32,7 @@ def _same(a, b):
 
 
 def test_one_network_per_head_and_seed_equals_train(recs, data):
-    from danae_lite.core.train import train
+    from danae_lite.danae.train import train
 
     _, xs, ys = data
     cfg = TrainConfig(max_steps=5, num_threads=1)
@@ -105,7 +107,7 @@ def _job(xs, ys, cfg):
 def test_cache_key_covers_the_code_that_makes_the_network(recs, tmp_path, monkeypatch, module):
     import importlib
 
-    mod = importlib.import_module(f"danae_lite.core.{module}")
+    mod = importlib.import_module(f"danae_lite.danae.{module}")
     job = _job([recs[0].euler[:, 0]], [recs[1].euler[:, 0]], TrainConfig(max_steps=5))
     before = networks.cache_key(job)
     edited = tmp_path / f"{module}.py"
@@ -123,12 +125,12 @@ def test_cache_key_covers_the_code_that_makes_the_network(recs, tmp_path, monkey
 
 
 def test_cache_key_hashes_one_explicit_list_of_modules():
-    assert networks.NETWORK_CODE == tuple(f"danae_lite.core.{m}" for m in
+    assert networks.NETWORK_CODE == tuple(f"danae_lite.danae.{m}" for m in
                                           ("model", "gemm_conv", "train_types", "train", "windows", "seeding"))
 
 
-@pytest.mark.parametrize(("module", "changes_key"), [("danae_lite.core.checkpoints", False), ("danae_lite.config", False),
-                                                     ("danae_lite.core.networks", False), ("danae_lite.core.train", True)])
+@pytest.mark.parametrize(("module", "changes_key"), [("danae_lite.danae.checkpoints", False), ("danae_lite.runtime", False),
+                                                     ("danae_lite.danae.networks", False), ("danae_lite.danae.train", True)])
 def test_cache_key_ignores_checkpoint_code_but_not_training_code(recs, monkeypatch, module, changes_key):
     job = _job([recs[0].euler[:, 0]], [recs[1].euler[:, 0]], TrainConfig(max_steps=5))
     before = networks.cache_key(job)

@@ -431,10 +431,10 @@ def test_code_shown_in_the_prose_imports_what_exists(path):
 
 
 def test_the_shown_code_check_finds_a_wrong_import():
-    text = ("```python\nfrom danae_lite.core.train import predict\nfrom danae_lite import alignment\n"
-            "from danae_lite.core.inference import predict\nimport numpy as np\n```\n"
+    text = ("```python\nfrom danae_lite.danae.train import predict\nfrom danae_lite import alignment\n"
+            "from danae_lite.danae.predict import predict\nimport numpy as np\n```\n"
             "```bash\nfrom danae_lite import nothing\n```")
-    assert shown_code_problems(text) == ["danae_lite.core.train has no predict",
+    assert shown_code_problems(text) == ["danae_lite.danae.train has no predict",
                                          "danae_lite has no alignment"]
 
 

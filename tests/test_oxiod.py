@@ -9,8 +9,8 @@ from scipy.ndimage import uniform_filter1d
 from scipy.signal import savgol_filter
 from scipy.spatial.transform import Rotation
 
-from danae_lite import DataError
-from danae_lite.core.oxiod import find_recordings, gt_glitch_summary, load_recording
+from danae_lite.data.recording import DataError
+from danae_lite.data.oxiod import find_recordings, gt_glitch_summary, load_recording
 
 from conftest import edit_cell, edit_line, synthetic_oxiod, write_rows
 

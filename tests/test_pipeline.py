@@ -5,13 +5,16 @@ import numpy as np
 import pytest
 import torch
 
-from danae_lite.core import kalman, metrics, pipeline, simulate
-from danae_lite.core.angles import ANGLES
+from danae_lite.kalman import filter as kalman
+from danae_lite.evaluate import metrics
+from danae_lite.paper import pipeline
+from danae_lite.data import simulate
+from danae_lite.angles import ANGLES
 from danae_lite.research.baselines import Danae, PaperKF
-from danae_lite.core.datasets import Experiment
+from danae_lite.data.experiments import Experiment
 from danae_lite.research.leaderboard import run_leaderboard
-from danae_lite.core.recording import DataError
-from danae_lite.core.train import TrainConfig
+from danae_lite.data.recording import DataError
+from danae_lite.danae.train import TrainConfig
 
 
 @pytest.fixture(scope="module")

@@ -3,7 +3,7 @@ import matplotlib.colors as mcolors
 import pytest
 
 from danae_lite.research import baselines
-from danae_lite.core import plots
+from danae_lite import plots
 
 
 def test_every_leaderboard_method_has_its_own_colour_and_none_is_an_angle_colour():

@@ -19,11 +19,12 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from conftest import synthetic_oxiod, ucs_signals, write_rows, write_ucs
-from danae_lite.core import oxiod, ucs
-from danae_lite.core.angles import angle_diff, euler_to_quat, quat_to_euler, wrap
-from danae_lite.core.kalman import KFConfig, gain_sequence, kalman_filter
-from danae_lite.core.recording import DataError
-from danae_lite.core.windows import sliding_windows, stitch_overlap_average, stitch_tiles, tile_windows
+from danae_lite.data import oxiod, ucs
+from danae_lite.angles import angle_diff, euler_to_quat, quat_to_euler, wrap
+from danae_lite.kalman.filter import KFConfig, gain_sequence, kalman_filter
+from danae_lite.data.recording import DataError
+from danae_lite.danae.windows import (sliding_windows, stitch_overlap_average,
+                                      stitch_tiles, tile_windows)
 
 PI = math.pi
 TAU = 2.0 * math.pi

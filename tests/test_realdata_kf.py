@@ -6,7 +6,9 @@ the check is "in the paper's range" (Table 1 KF: roll 0.0815, pitch 0.0600 rad),
 """
 import pytest
 
-from danae_lite.core import kalman, metrics, oxiod
+from danae_lite.kalman import filter as kalman
+from danae_lite.evaluate import metrics
+from danae_lite.data import oxiod
 
 pytestmark = pytest.mark.realdata
 

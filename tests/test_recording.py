@@ -3,7 +3,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from danae_lite import DataError, Recording
+from danae_lite.data.recording import DataError, Recording
 
 
 def make(n=30, **over):

@@ -9,17 +9,10 @@ import pytest
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
-from danae_lite.core.angles import angle_diff, quat_to_euler
-from danae_lite.core.simulate import (
-    AUTHORS_UCS_STD,
-    ERROR_SOURCES,
-    G,
-    MAG_REF,
-    SCENARIOS,
-    SensorErrors,
-    rotation_matrices,
-    simulate,
-)
+from danae_lite.angles import angle_diff, quat_to_euler
+from danae_lite.data.simulate import (AUTHORS_UCS_STD, ERROR_SOURCES, G, MAG_REF,
+                                      SCENARIOS, SensorErrors, rotation_matrices,
+                                      simulate)
 
 UP = np.array([0.0, 0.0, 1.0])
 SENSORS = ("gyro", "acc", "mag")

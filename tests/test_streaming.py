@@ -3,18 +3,12 @@ import numpy as np
 import pytest
 import torch
 
-from danae_lite.core.model import (
-    ARCHITECTURES,
-    DanaeCausal,
-    DanaePaper,
-    build_model,
-    count_parameters,
-    layer_table,
-    receptive_field,
-)
-from danae_lite.research.streaming import StreamingDanae, measure_latency, predict_causal
-from danae_lite.core.checkpoints import load_result
-from danae_lite.core.train import TrainConfig, TrainResult, load, save, train
+from danae_lite.danae.model import (ARCHITECTURES, DanaeCausal, DanaePaper, build_model,
+                                    count_parameters, layer_table, receptive_field)
+from danae_lite.research.streaming import (StreamingDanae, measure_latency,
+                                           predict_causal)
+from danae_lite.danae.checkpoints import load_result
+from danae_lite.danae.train import TrainConfig, TrainResult, load, save, train
 
 NOISE = 0.05  # rad
 
@@ -196,7 +190,7 @@ def test_receptive_field_boundary():
     """The oldest input in the receptive field changes the output, one sample older does not.
 
     Every weight is set to 1 / fan-in and every bias to 0.1 (every ReLU active, no
-    cancellation, as in :func:`danae_lite.core.model.receptive_field`): with the random init the
+    cancellation, as in :func:`danae_lite.danae.model.receptive_field`): with the random init the
     oldest sample's influence can be as small as float32 rounding (7e-9 rad seen), and
     whether it survives the rounding then depends on the order of the sums."""
     net = net_with_stats(hidden=16)

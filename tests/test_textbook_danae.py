@@ -2,8 +2,8 @@
 and ``textbook-danae-loop``) and claims both are the package's. These tests take the two cells
 out of the notebook, run them in a fresh namespace and hold them to that claim:
 
-* same weights -> same outputs as :class:`danae_lite.core.model.DanaePaper`;
-* same seed -> the same loss curve (and the same kept weights) as :func:`danae_lite.core.train.train`;
+* same weights -> same outputs as :class:`danae_lite.danae.model.DanaePaper`;
+* same seed -> the same loss curve (and the same kept weights) as :func:`danae_lite.danae.train.train`;
 * and the comparisons can fail: another seed, or a network with one thing changed, is caught.
 """
 import json
@@ -13,8 +13,10 @@ import numpy as np
 import pytest
 import torch
 
-from danae_lite.core import model, pipeline, simulate
-from danae_lite.core.train import TrainConfig, train
+from danae_lite.danae import model
+from danae_lite.paper import pipeline
+from danae_lite.data import simulate
+from danae_lite.danae.train import TrainConfig, train
 
 NOTEBOOK = Path(__file__).resolve().parents[1] / "notebooks" / "03_danae.ipynb"
 MODULE_TAG, LOOP_TAG = "textbook-danae-module", "textbook-danae-loop"
@@ -24,7 +26,7 @@ LR = 0.002  # the paper's Adam learning rate, used by both loops
 
 # How far two float32 code paths may drift apart in STEPS steps of the same training.
 # The chapter's network runs torch's own convolutions, the package's runs them as matrix
-# products (danae_lite.core.gemm_conv): the same sums in another order, which also differs from
+# products (danae_lite.danae.gemm_conv): the same sums in another order, which also differs from
 # CPU to CPU (AVX2 or AVX-512 kernels). One weight-gradient entry sums 16 windows x 20
 # samples = 320 products, after a backward pass through 11 layers; the forward-error bound
 # of a float32 sum of n terms is n * u (u = 2**-24 = 6e-8): 320 * 6e-8 * 11 layers = 2e-4

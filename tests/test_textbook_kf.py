@@ -2,8 +2,8 @@
 
 The chapter's cell tagged ``textbook-kf-step`` defines ``kf_step_by_hand(x, P, u, y, A, B, C,
 Q, R) -> (x, P, K)``. These tests execute that cell's source on its own (it may import numpy and
-nothing else) and compare the function with :func:`danae_lite.core.kalman.kf_step` on random
-problems and with :func:`danae_lite.core.kalman.run_kf` over a whole simulated recording, so the
+nothing else) and compare the function with :func:`danae_lite.kalman.filter.kf_step` on random
+problems and with :func:`danae_lite.kalman.filter.run_kf` over a whole simulated recording, so the
 page cannot show a step that differs from the filter the book runs.
 """
 import ast
@@ -13,8 +13,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from danae_lite.core import kalman
-from danae_lite.core.simulate import simulate
+from danae_lite.kalman import filter as kalman
+from danae_lite.data.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
 CHAPTER = ROOT / "notebooks" / "01_kalman_filter.ipynb"

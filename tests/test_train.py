@@ -6,11 +6,11 @@ import pytest
 import torch
 
 from conftest import assert_close_scaled
-from danae_lite.core.seeding import default_device
-from danae_lite.core.model import DanaeBig, DanaePaper
-from danae_lite.core.checkpoints import CheckpointError
-from danae_lite.core.inference import predict
-from danae_lite.core.train import TrainConfig, TrainResult, load, save, train
+from danae_lite.danae.seeding import default_device
+from danae_lite.danae.model import DanaeBig, DanaePaper
+from danae_lite.danae.checkpoints import CheckpointError
+from danae_lite.danae.predict import predict
+from danae_lite.danae.train import TrainConfig, TrainResult, load, save, train
 
 NOISE = 0.05  # rad
 
@@ -58,7 +58,7 @@ def test_window_counts_respect_recordings(trained):
     assert trained.device == "cpu" and trained.steps == 300 and trained.seconds > 0
 
 def test_validation_tail_is_the_held_out_block(trained):
-    from danae_lite.core.train import validation_tail
+    from danae_lite.danae.train import validation_tail
 
     assert [validation_tail(n, 20, 0.1) for n in (1500, 100, 40)] == [150, 20, 20]
     assert validation_tail(1500, 20, 0.0) == 0
@@ -70,7 +70,7 @@ def test_strided_validation_windows_tile_the_tail_and_score_what_they_say():
     validation loss is the MSE of exactly those windows from position loss_start on,
     recomputed here with the returned network (float32 forward, float64 sums on both sides:
     the same operations in the same order, so equal to float32 rounding of one sum)."""
-    from danae_lite.core.train import validation_tail
+    from danae_lite.danae.train import validation_tail
 
     xs, ys = dataset()
     cfg = small(max_steps=30, val_every=30, loss_start=8, val_stride=12)
@@ -104,9 +104,9 @@ def test_training_batches_are_the_rows_of_the_cut_out_windows():
     windows cut out of each recording (windows.windows_from_recordings), masked windows left
     out and standardised by the network's statistics. Elementwise float32 arithmetic on the
     same operands: equality is exact on any CPU."""
-    from danae_lite.core import train as tr
-    from danae_lite.core.model import build_model
-    from danae_lite.core.windows import windows_from_recordings
+    from danae_lite.danae import train as tr
+    from danae_lite.danae.model import build_model
+    from danae_lite.danae.windows import windows_from_recordings
 
     rng = np.random.default_rng(5)
     xs = [rng.standard_normal((n, 4)) for n in (120, 75)]
@@ -170,7 +170,7 @@ def test_torch_convolutions_match_the_trained_matrix_products(trained):
 def test_strided_prediction_is_the_mean_of_its_windows(trained, stride):
     # reference: each chosen window predicted on its own (stitch="tiles" on a one-window
     # recording), then every sample averaged over the windows that cover it, by a loop
-    from danae_lite.core.windows import overlap_starts
+    from danae_lite.danae.windows import overlap_starts
 
     x, _ = recording(233, 0.3, seed=9)
     starts = overlap_starts(len(x), 20, stride)
@@ -207,7 +207,7 @@ def test_thread_count_changes_a_seed_only_by_rounding():
 
 def test_default_threads_are_the_process_setting():
     # None means "what the entry point set" (torch.get_num_threads()), restored afterwards
-    from danae_lite.core.train import _default_threads
+    from danae_lite.danae.train import _default_threads
 
     old = torch.get_num_threads()
     try:
@@ -315,7 +315,7 @@ def test_save_bare_model(tmp_path):
 def test_two_processes_storing_the_same_network_at_once_both_succeed(tmp_path, monkeypatch):
     # the other process (another chapter under pytest's workers) writes and replaces the same
     # file between this one's write and its replace: both must end with a whole, loadable file
-    from danae_lite.core import checkpoints
+    from danae_lite.danae import checkpoints
 
     path, real_replace, calls = tmp_path / "net.pt", checkpoints.os.replace, []
 

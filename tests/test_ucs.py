@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from danae_lite import DataError
-from danae_lite.core.ucs import HEADER, load_recording, split_train_test
+from danae_lite.data.recording import DataError
+from danae_lite.data.ucs import HEADER, load_recording, split_train_test
 
 from conftest import T0, UCS_HEADER, G, columns, edit_cell, ucs_signals, write_ucs
 

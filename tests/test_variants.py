@@ -4,14 +4,15 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from danae_lite.core import kalman
-from danae_lite.core.datasets import Experiment
-from danae_lite.research.features import MULTI_CHANNELS, from_circle, multi_input, to_circle
+from danae_lite.kalman import filter as kalman
+from danae_lite.data.experiments import Experiment
+from danae_lite.research.features import (MULTI_CHANNELS, from_circle, multi_input,
+                                          to_circle)
 from danae_lite.research.leaderboard import run_leaderboard
 from danae_lite.research.methods import total_error_rmse
-from danae_lite.core.simulate import simulate
+from danae_lite.data.simulate import simulate
 from danae_lite.research.streaming import predict_causal
-from danae_lite.core.train import TrainConfig
+from danae_lite.danae.train import TrainConfig
 from danae_lite.research.variants import DanaeOn, Selected, validation_block
 
 
@@ -105,9 +106,10 @@ def test_research_budget_caps_steps_and_tiles_validation():
     (capped) score at most RESEARCH_SCORED_SAMPLES window samples, batch x (window -
     loss_start) per step (a smaller step cap, fast mode's, wins), with RESEARCH_CHECKS checks;
     the variants keep the context's epoch. The step counts are worked out by hand."""
-    from danae_lite.research.denoiser import DanaeRes
-    from danae_lite.research.features import (CAUSAL_SETTINGS, RES_SETTINGS, RESEARCH_CHECKS,
-                                              RESEARCH_SCORED_SAMPLES, research_config)
+    from danae_lite.research.danae_res import DanaeRes
+    from danae_lite.research.features import (CAUSAL_SETTINGS, RES_SETTINGS,
+                                              RESEARCH_CHECKS, RESEARCH_SCORED_SAMPLES,
+                                              research_config)
 
     assert (RESEARCH_SCORED_SAMPLES, RESEARCH_CHECKS) == (1500 * 16 * 34, 5)
     # paper network: 20 scored positions per window, 816,000 / (16 * 20) = 2550 steps

@@ -1,7 +1,8 @@
 """The wording rule for differences over seeds or recordings (danae_lite.research.verdicts)."""
 import pytest
 
-from danae_lite.research.verdicts import (MIN_DRAWS, difference_holds, difference_phrase, group_by_verdict,
+from danae_lite.research.verdicts import (MIN_DRAWS, difference_holds,
+                                          difference_phrase, group_by_verdict,
                                           join_grouped, join_labels)
 
 

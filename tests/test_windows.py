@@ -4,15 +4,9 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from danae_lite.core.windows import (
-    Tiling,
-    overlap_starts,
-    sliding_windows,
-    stitch_overlap_average,
-    stitch_tiles,
-    tile_windows,
-    windows_from_recordings,
-)
+from danae_lite.danae.windows import (Tiling, overlap_starts, sliding_windows,
+                                      stitch_overlap_average, stitch_tiles,
+                                      tile_windows, windows_from_recordings)
 
 
 def test_sliding_windows_match_slices():

@@ -26,7 +26,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from danae_lite.config import CACHE_ENV, DATA_ENV, DEFAULT_CACHE_GB, FAST_ENV, JOBS_ENV, RunSettings, kernel_environment
+from danae_lite.runtime import (CACHE_ENV, DATA_ENV, DEFAULT_CACHE_GB, FAST_ENV,
+                                JOBS_ENV, RunSettings, kernel_environment)
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -69,7 +70,7 @@ def code_hash(nb: Mapping[str, Any]) -> str:
 
 
 DATA_FOLDERS = ("oxiod", "ucs", "broad")
-"""The dataset folders of a data directory that the chapters read (see :mod:`danae_lite.core.datasets`)."""
+"""The dataset folders of a data directory that the chapters read (see :mod:`danae_lite.data.experiments`)."""
 
 
 def data_fingerprint(data_dir: str | os.PathLike[str] | None) -> str:
@@ -119,7 +120,7 @@ def stale_reason(nb: Mapping[str, Any], stem: str, data_sha256: str | None = Non
     (:func:`data_fingerprint`); given ``data_sha256`` (the fingerprint of the data at hand), also
     of that data. Markdown cells do not enter: editing prose keeps a chapter fresh.
     """
-    from danae_lite.core._version import __version__
+    from danae_lite._version import __version__
 
     rerun = (f"re-execute it with real data: DANAE_DATA=/path/to/data make execute "
              f"(or: python -m tools.execute --only {stem})")
@@ -275,7 +276,7 @@ def stamp(nb: MutableMapping[str, Any], *, seconds: float, data_dir: str | os.Pa
     """
     from importlib.metadata import PackageNotFoundError, version
 
-    from danae_lite.core._version import __version__
+    from danae_lite._version import __version__
 
     try:
         torch_version = version("torch")
@@ -336,7 +337,7 @@ def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLik
     out_path
         Where to write the executed notebook (nbformat v4); may be ``path``.
     env
-        The whole environment of the kernel (:func:`~danae_lite.config.kernel_environment`).
+        The whole environment of the kernel (:func:`~danae_lite.runtime.kernel_environment`).
     data_dir, fast, data_sha256
         The data directory and fast mode that ``env`` gives the kernel, and the data's
         :func:`data_fingerprint`, for the record (:func:`stamp`).
@@ -416,7 +417,7 @@ def _refusal(data_dir: Path | None, fast: bool) -> str | None:
 
 def _kernel_setup(data: Path | None, cache: Path | None, *, fast: bool, jobs: int,
                   cache_gb: float) -> tuple[dict[str, str], Path | None]:
-    """The kernels' environment (:func:`~danae_lite.config.kernel_environment`, inline figures, a
+    """The kernels' environment (:func:`~danae_lite.runtime.kernel_environment`, inline figures, a
     fixed hash seed) and this mode's network cache folder (created; None without a cache)."""
     if cache is not None:
         cache.mkdir(parents=True, exist_ok=True)
@@ -545,7 +546,7 @@ def _network_files(folder: Path | None) -> dict[str, float]:
 def _network_counts(before: Mapping[str, float], after: Mapping[str, float], start: float) -> tuple[int, int]:
     """(networks trained, networks found in the cache) by a run that started at ``start``: the
     files it added, and the older files it loaded (loading marks a file used, see
-    :class:`~danae_lite.core.networks.NetworkCache`)."""
+    :class:`~danae_lite.danae.networks.NetworkCache`)."""
     trained = sum(1 for name in after if name not in before)
     cached = sum(1 for name, mtime in after.items() if name in before and mtime >= start)
     return trained, cached

@@ -1,3 +1,3 @@
-"""The research engine: what chapters 5 onward add on top of the core (baselines and library
-filters, the leaderboard, cross-validation, the learned denoisers). It imports the core, never
-the entry points; the modules are listed in :mod:`danae_lite`."""
+"""Research: past the paper (baselines and library filters, the leaderboard, cross-validation,
+the learned denoisers DANAE-res and DANAE-safe). It imports the rooms above it in the package
+map, never the entry points; the modules are listed in :mod:`danae_lite`."""

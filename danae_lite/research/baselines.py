@@ -3,10 +3,10 @@
 A method is fitted on the training recordings only (its parameters chosen by a documented
 grid search there) and then predicts roll, pitch, yaw [rad] for any recording, in the ground
 truth's frame. All methods see the same inputs: recordings already rotated into the ground
-truth's body frame by a :class:`~danae_lite.core.alignment.FrameAlignment` estimated on the
+truth's body frame by a :class:`~danae_lite.data.alignment.FrameAlignment` estimated on the
 training recordings, and they all get the same heading correction (magnetic north -> the
 ground truth's x axis). Training objectives use clean ground-truth samples only
-(:mod:`danae_lite.core.groundtruth`).
+(:mod:`danae_lite.data.groundtruth`).
 
 ========================  =========================================================================
 name                      what it is / what is tuned on the training recordings
@@ -19,7 +19,7 @@ name                      what it is / what is tuned on the training recordings
                           three searched jointly on a grid (roll and pitch feed the heading
                           formula, so no angle is tuned on runs where the others had another Q)
 ``tuned_kf_rts``          the tuned KF followed by a Rauch-Tung-Striebel smoother
-                          (:func:`danae_lite.research.kf_offline.rts_smooth`): its non-causal counterpart
+                          (:func:`danae_lite.kalman.offline.rts_smooth`): its non-causal counterpart
 ``butterworth``           the paper KF's output low-passed by a digital Butterworth filter
                           (``scipy.signal.butter``, order 2, second-order sections, zero phase with
                           ``sosfiltfilt``); cut-off [Hz] per angle from a grid
@@ -27,8 +27,8 @@ name                      what it is / what is tuned on the training recordings
 ``linear_map``            an affine map from each 20-sample window of the paper KF's angle to the
                           20-sample truth window, least squares on the training windows; windows
                           averaged back like DANAE's overlap reconstruction
-``fusion`` ``vqf``        library filters (:mod:`danae_lite.research.filters`), their main parameters searched
-``madgwick`` ``mahony``   jointly on a grid (:data:`danae_lite.research.filters.FILTERS`): Fusion gain and
+``fusion`` ``vqf``        library filters (:mod:`danae_lite.research.ahrs.filters`), their main parameters searched
+``madgwick`` ``mahony``   jointly on a grid (:data:`danae_lite.research.ahrs.filters.FILTERS`): Fusion gain and
                           magnetic rejection, VQF tauAcc and tauMag, Madgwick beta, Mahony k_P and k_I
 ``riann``                 RIANN's shipped network, nothing tuned; roll and pitch only (yaw NaN)
 ``danae``                 the paper's DANAE (one network per angle and seed) on the paper KF's
@@ -50,8 +50,8 @@ along the recording, and their training target is the truth moved next to it,
 [-π, π) at the end. For roll and pitch this changes nothing.
 
 The interface (:class:`~danae_lite.research.methods.Method`, the fitting context, the objectives) is
-:mod:`danae_lite.research.methods`; ``danae`` is :class:`danae_lite.core.paper_danae.PaperDanae` on the paper
-KF's output, the same estimator as the paper's experiment (:func:`danae_lite.core.pipeline.reproduce`).
+:mod:`danae_lite.research.methods`; ``danae`` is :class:`danae_lite.paper.danae.PaperDanae` on the paper
+KF's output, the same estimator as the paper's experiment (:func:`danae_lite.paper.pipeline.reproduce`).
 """
 from __future__ import annotations
 
@@ -66,16 +66,18 @@ from numpy.typing import NDArray
 from scipy import signal
 from scipy.ndimage import uniform_filter1d
 
-from . import filters, kf_grid, kf_offline, methods
-from ..core import kalman
-from ..core.angles import ANGLES, wrap
+from .ahrs import filters
+from ..kalman import grid as kf_grid, offline
+from . import methods
+from ..kalman import filter as kalman
+from ..angles import ANGLES, wrap
 from .features import research_config
 from .memo import RunMemo, digest
 from .methods import Method, total_error_rmse, total_objective, train_objective
-from ..core.networks import NetworkJob
-from ..core.paper_danae import PaperDanae, check_settings, continuous_target
-from ..core.recording import Recording
-from ..core.windows import sliding_windows, stitch_overlap_average
+from ..danae.networks import NetworkJob
+from ..paper.danae import PaperDanae, check_settings, continuous_target
+from ..data.recording import Recording
+from ..danae.windows import sliding_windows, stitch_overlap_average
 
 __all__ = ["BUTTER_CUTOFFS_HZ", "BUTTER_ORDER", "KF_Q_ANGLE", "KF_Q_BIAS", "LINEAR_WINDOW", "MA_LENGTHS",
            "METHODS", "Butterworth", "Constant", "Context", "Danae", "LibraryFilter", "LinearMap", "Method",
@@ -188,7 +190,7 @@ class TunedKF(PaperKF):
     def _search(self, grid: list[tuple[float, float, float]], ctx: Context) -> Array:
         """Per grid point, the total-error objective and the clean-sample RMSE [rad] of roll,
         pitch and yaw over the training recordings, (len(grid), 4)
-        (:func:`~danae_lite.research.kf_grid.score_kf_grid`). A search made before on the same
+        (:func:`~danae_lite.kalman.grid.score_kf_grid`). A search made before on the same
         grid, training data and north offset is found in :data:`searches`."""
         key = ("tuned-kf", tuple(grid), float(ctx.alignment.north_yaw),
                tuple((r.fs, digest(r.gyro, r.acc, r.mag, r.quat, ctx.clean[r.name])) for r in ctx.train))
@@ -213,7 +215,7 @@ class TunedKFSmoother(PaperKF):
         return self
 
     def raw(self, rec: Recording) -> Array:
-        e = kf_offline.rts_smooth(kalman.run_kf(rec, self.config))[:, 0::2].copy()
+        e = offline.rts_smooth(kalman.run_kf(rec, self.config))[:, 0::2].copy()
         e[:, 2] = e[:, 2] + self.ctx.alignment.north_yaw
         return e
 
@@ -356,9 +358,9 @@ class LinearMap(_OnPaperKF):
 
 
 class LibraryFilter(Method):
-    """A filter of :data:`danae_lite.research.filters.FILTERS`, its grid searched on the training recordings."""
+    """A filter of :data:`danae_lite.research.ahrs.filters.FILTERS`, its grid searched on the training recordings."""
 
-    causal = True  # each runs sample by sample on the past only (see danae_lite.research.filters)
+    causal = True  # each runs sample by sample on the past only (see danae_lite.research.ahrs.filters)
 
     def __init__(self, name: str) -> None:
         super().__init__()
@@ -425,12 +427,12 @@ class Danae(_OnPaperKF):
     angles : the angles that get a network; the others are predicted as NaN.
     stride : step between the overlapping windows of its predictions [samples]; default
         :data:`~danae_lite.research.methods.PREDICT_STRIDE`, 1 for every window (chapter 4's
-        :func:`~danae_lite.core.pipeline.reproduce`).
+        :func:`~danae_lite.paper.pipeline.reproduce`).
     val_stride : step between its validation windows [samples]; default None: windows that
         tile the validation tails (the window length apart, each validation sample scored once,
         as every network of Part III: :func:`~danae_lite.research.features.research_config`);
         1 for every window, the paper's recipe (chapter 4's
-        :func:`~danae_lite.core.pipeline.reproduce`). The training itself is the same; the
+        :func:`~danae_lite.paper.pipeline.reproduce`). The training itself is the same; the
         validation loss, and so the checkpoint kept, is estimated with a tenth to a twentieth
         of the forward passes.
     """
@@ -485,7 +487,7 @@ class Danae(_OnPaperKF):
 
 def make_method(name: str) -> Method:
     """A fresh, unfitted method of this module by leaderboard name: one of :data:`METHODS`
-    (a library filter for the names of :data:`danae_lite.research.filters.FILTERS`).
+    (a library filter for the names of :data:`danae_lite.research.ahrs.filters.FILTERS`).
     :func:`danae_lite.research.registry.make_method` builds the ``danae-res[<filter>]`` names too."""
     simple = {"constant": Constant, "paper_kf": PaperKF, "tuned_kf": TunedKF, "tuned_kf_rts": TunedKFSmoother,
               "butterworth": Butterworth, "moving_average": MovingAverage, "linear_map": LinearMap, "danae": Danae}
@@ -494,15 +496,15 @@ def make_method(name: str) -> Method:
     if name in filters.FILTERS:
         return LibraryFilter(name)
     if denoiser_source(name) is not None:
-        raise ValueError(f"{name!r} is the denoiser of danae_lite.research.denoiser: build it with "
+        raise ValueError(f"{name!r} is the denoiser of danae_lite.research.danae_res: build it with "
                          "danae_lite.research.registry.make_method")
     raise ValueError(f"unknown method {name!r}; choose from {', '.join(METHODS)} or danae-res[<filter>]")
 
 
 DENOISER_FAMILIES: tuple[str, ...] = ("danae-res", "danae-safe")
 """Learned correctors a leaderboard name can put behind a filter, ``<family>[<filter>]``:
-DANAE-res (:class:`danae_lite.research.denoiser.DanaeRes`) and DANAE-res with a per-sample
-fallback and an error bar (:class:`danae_lite.research.fallback.DanaeSafe`)."""
+DANAE-res (:class:`danae_lite.research.danae_res.DanaeRes`) and DANAE-res with a per-sample
+fallback and an error bar (:class:`danae_lite.research.danae_safe.DanaeSafe`)."""
 
 
 def denoiser_name(name: str) -> tuple[str, str] | None:

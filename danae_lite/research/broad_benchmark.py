@@ -1,7 +1,7 @@
 """The BROAD benchmark's error metric, its two reference filters and the authors' published figures.
 
 BROAD: Laidig, Caruso, Cereatti, Seel, "BROAD—A Benchmark for Robust Inertial Orientation
-Estimation", *Data* 6(7):72, 2021 (CC BY 4.0). The trials are loaded by :mod:`danae_lite.research.broad`.
+Estimation", *Data* 6(7):72, 2021 (CC BY 4.0). The trials are loaded by :mod:`danae_lite.data.broad`.
 The code below is our own, written after reading the benchmark's paper and example code (the
 metric, the filters, the initialisation); nothing is copied from it.
 
@@ -20,7 +20,7 @@ common parameters (Madgwick beta 0.12; Mahony k_P 0.74, k_I 0.0012) they reprodu
 authors' per-trial total/heading/inclination RMSE to a relative 1.1e-4 or better on all 24
 trials we have (the residue is the reference code's single-precision arithmetic: a float32
 emulation of its Mahony matched the published figures of two trials to 1e-13). The
-``ahrs``-based wrappers of :mod:`danae_lite.research.filters` do not: ``ahrs``'s Madgwick uses the
+``ahrs``-based wrappers of :mod:`danae_lite.research.ahrs.filters` do not: ``ahrs``'s Madgwick uses the
 paper's full-size magnetic reference where the reference code predicts half of it (per-trial
 total RMSE off by -35 % to +44 %), and ``ahrs``'s Mahony starts from another initial quaternion
 (off by -5.5 % to +8.4 %; with the benchmark's initial quaternion it matches to 1e-4).
@@ -36,10 +36,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..core._loading import read_json
-from ..core.angles import quat_multiply
-from .broad import TrialIndex
-from ..core.recording import DataError, Recording
+from ..data.parsing import read_json
+from ..angles import quat_multiply
+from ..data.broad import TrialIndex
+from ..data.recording import DataError, Recording
 
 Array = NDArray[np.float64]
 
@@ -180,7 +180,7 @@ def evaluate(rec: Recording, q_est: ArrayLike) -> BroadRMSE:
         movement, valid = rec.meta["movement"], rec.meta["gt_valid"]
     except KeyError as exc:
         raise ValueError(f"recording {rec.name!r} has no meta[{exc.args[0]!r}]; load it with "
-                         "danae_lite.research.broad.load_trial") from None
+                         "danae_lite.data.broad.load_trial") from None
     q_true = np.where(np.asarray(valid, dtype=bool)[:, None], rec.quat, np.nan)
     return benchmark_rmse(q_est, q_true, movement)
 
@@ -315,7 +315,7 @@ _Rows = list[list[float]]
 
 def _inputs(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs: float,
             q0: ArrayLike | None) -> tuple[_Rows, _Rows, _Rows | None, float, Array]:
-    from .filters import _check
+    from .ahrs.filters import _check
 
     g, a, m = _check(gyro, acc, mag, fs)
     if q0 is None:
@@ -354,7 +354,7 @@ def reference_madgwick(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, f
 
     Returns
     -------
-    (N, 4) quaternions, scalar-last ``[x, y, z, w]``, body -> NWU (as :mod:`danae_lite.research.filters`).
+    (N, 4) quaternions, scalar-last ``[x, y, z, w]``, body -> NWU (as :mod:`danae_lite.research.ahrs.filters`).
     """
     G_, A_, M_, dt, q = _inputs(gyro, acc, mag, fs, q0)
     beta = float(beta)

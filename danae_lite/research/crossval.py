@@ -13,14 +13,14 @@ A :class:`Split` is one training set and the recordings held out from it. The pr
 alignment all see the training recordings only), and scores every held-out recording on its
 own: one row per split, test recording, method, sample subset and angle. Splits are
 independent, so ``jobs`` > 1 runs them in worker processes
-(:func:`danae_lite.core.networks.in_processes`: ``spawn`` start, ``cores // jobs`` torch
+(:func:`danae_lite.danae.networks.in_processes`: ``spawn`` start, ``cores // jobs`` torch
 threads each, kept for the life of the process, so that a worker's filter runs and network
 outputs, :mod:`danae_lite.research.memo`, serve later splits too), after the workers have
 trained the networks of all splits together, into the cache (:func:`_pretrain`); with a single
 split the workers train its networks instead.
 
 Aggregation (:class:`CrossValidation`): per recording the mean over seeds, then the mean and
-sample standard deviation over held-out recordings (:func:`danae_lite.core.metrics.spread`), and
+sample standard deviation over held-out recordings (:func:`danae_lite.evaluate.metrics.spread`), and
 :meth:`CrossValidation.paired` compares two methods recording by recording.
 """
 from __future__ import annotations
@@ -39,17 +39,17 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from . import broad_benchmark
-from ..core import metrics
-from ..core.angles import ANGLES, wrap
-from ..core.datasets import Experiment
+from ..evaluate import metrics
+from ..angles import ANGLES, wrap
+from ..data.experiments import Experiment
 from .leaderboard import Leaderboard, network_jobs, run_leaderboard, trial_figures
 from .memo import carrying_store
 from .methods import Method
-from ..core.networks import in_processes, pretrain, threads_per_process
-from ..core.recording import Recording
+from ..danae.networks import in_processes, pretrain, threads_per_process
+from ..data.recording import Recording
 from .registry import METHODS
-from ..core.scoring import plain, score_rows
-from ..core.train import TrainConfig
+from ..evaluate.scoring import plain, score_rows
+from ..danae.train import TrainConfig
 
 ROW_COLUMNS: tuple[str, ...] = ("split", "protocol", "group", "test", "method", "causal", "samples", "angle",
                                 "mean_dev", "max_dev", "rmse", "rmse_seed_std", "n", "seeds")
@@ -146,7 +146,7 @@ class CrossValidation:
         return out[[m for m in self.methods if m in out.columns]]
 
     def summary(self, samples: str = "clean", protocol: str | None = None, by_group: bool = False) -> pd.DataFrame:
-        """Mean ± std over held-out recordings (:func:`danae_lite.core.metrics.spread`) of the RMSE
+        """Mean ± std over held-out recordings (:func:`danae_lite.evaluate.metrics.spread`) of the RMSE
         [rad]: rows methods (with ``causal``), columns ``(angle, "mean" | "std")`` and the number
         of recordings ``n``; with ``by_group`` one block of rows per group."""
         t = self._select(samples, protocol)
@@ -176,7 +176,7 @@ class CrossValidation:
 
     def paired(self, a: str, b: str, angle: str, samples: str = "clean", protocol: str | None = None) -> pd.DataFrame:
         """``a`` against ``b`` recording by recording: their RMSE [rad], the difference ``a - b``
-        [rad] and the reduction of ``a`` over ``b`` [%] (:func:`danae_lite.core.metrics.reduction_pct`;
+        [rad] and the reduction of ``a`` over ``b`` [%] (:func:`danae_lite.evaluate.metrics.reduction_pct`;
         positive: ``a`` has the smaller error). The frame's ``attrs`` hold the summary:
         ``mean_diff``, ``std_diff`` (spread over recordings), ``mean_reduction_pct``,
         ``wins`` (recordings where ``a`` is better) and ``n``."""
@@ -222,7 +222,7 @@ class CrossValidation:
         :meth:`corrections`), split and held-out recording, :data:`NO_HARM_COLUMNS`: the filter's
         and the corrector's value of each ``quantity`` on the same recording — the RMSE [rad] of
         roll, pitch and yaw on ``samples`` and, for BROAD, the benchmark's figures [deg] — and the
-        ``change_pct`` (:func:`danae_lite.core.metrics.reduction_pct`; negative: the correction made
+        ``change_pct`` (:func:`danae_lite.evaluate.metrics.reduction_pct`; negative: the correction made
         that recording worse). Values are means over seeds; an angle the filter does not
         estimate (NaN) has no row."""
         pairs = dict(self.corrections() if pairs is None else pairs)
@@ -373,7 +373,7 @@ def _run_one(split: Split, name: str, data: str, aligned: bool, methods: Sequenc
 def _pretrain(splits: Sequence[Split], name: str, data: str, aligned: bool, methods: Sequence[str],
               extra: Sequence[Method], seeds: Sequence[int], train_config: TrainConfig,
               cache: str | os.PathLike[str] | None, jobs: int) -> None:
-    """Train the networks of every split together (:func:`~danae_lite.core.networks.pretrain`):
+    """Train the networks of every split together (:func:`~danae_lite.danae.networks.pretrain`):
     the splits then run in parallel and find them in the cache, instead of each training its
     own while the other workers may be idle."""
     pretrain([j for s in splits for j in network_jobs(

@@ -5,13 +5,13 @@
 * :func:`multi_input`: the 11 channels of :data:`MULTI_CHANNELS` (a filter's angles, the
   accelerometer's tilt, the tilt-compensated magnetic heading, the Euler rates of the gyro).
 * :data:`CAUSAL_SETTINGS`: the causal network of chapter 7 (the DANAE variant
-  :func:`danae_lite.research.variants.causal_variant` and DANAE-res, :mod:`danae_lite.research.denoiser`).
+  :func:`danae_lite.research.variants.causal_variant` and DANAE-res, :mod:`danae_lite.research.danae_res`).
 * :data:`RES_SETTINGS`: DANAE-res's network, the causal one on 128-sample windows.
 * :func:`research_config` and :data:`RESEARCH_SCORED_SAMPLES`: how the networks of chapters 7
   to 9 are validated, and DANAE-res's training budget.
 * :func:`run_network`: a trained network over a whole recording, causal or not.
 
-Used by :mod:`danae_lite.research.variants` and :mod:`danae_lite.research.denoiser`.
+Used by :mod:`danae_lite.research.variants` and :mod:`danae_lite.research.danae_res`.
 """
 from __future__ import annotations
 
@@ -22,13 +22,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..core import kalman
-from ..core.recording import Recording
+from ..kalman import filter as kalman
+from ..data.recording import Recording
 from .memo import RunMemo, digest
 from .methods import PREDICT_STRIDE
 from .streaming import predict_causal
-from ..core.inference import predict
-from ..core.train import TrainConfig, TrainResult
+from ..danae.predict import predict
+from ..danae.train import TrainConfig, TrainResult
 
 Array = NDArray[np.float64]
 
@@ -39,13 +39,13 @@ MULTI_CHANNELS: tuple[str, ...] = (*ANGLE_CHANNELS, "roll acc", "pitch acc", "si
 """Input channels of the multi-input variant: angles [rad, -], accelerometer tilt [rad],
 magnetic heading [-], Euler rates [rad/s]."""
 CAUSAL_SETTINGS: dict[str, Any] = {"arch": "causal", "hidden": 64, "window": 64, "loss_start": 30}
-"""The causal network (:class:`~danae_lite.core.model.DanaeCausal`) as
-:class:`~danae_lite.core.train.TrainConfig` overrides: 64 channels, dilations 1-8 (receptive field 31
+"""The causal network (:class:`~danae_lite.danae.model.DanaeCausal`) as
+:class:`~danae_lite.danae.train.TrainConfig` overrides: 64 channels, dilations 1-8 (receptive field 31
 samples), trained on 64-sample windows with the loss on positions 30-63 only, where the full
 past is inside the window."""
 
 RES_SETTINGS: dict[str, Any] = {**CAUSAL_SETTINGS, "window": 128}
-"""DANAE-res's network (:mod:`danae_lite.research.denoiser`): the causal network on 128-sample
+"""DANAE-res's network (:mod:`danae_lite.research.danae_res`): the causal network on 128-sample
 windows, the loss on positions 30-127. The first 30 positions of a window are context only;
 on 64-sample windows they were 47 % of the work and on 128-sample windows 23 %. Chosen on the
 validation tails of 96 networks' training recordings (no test recording): the lowest
@@ -130,7 +130,7 @@ def run_network(res: TrainResult, x: Array) -> Array:
     """Output (N, D) of the trained network ``res`` on a whole recording's inputs ``x`` (N, C):
     a causal network sample by sample over its past (:func:`~danae_lite.research.streaming.predict_causal`),
     any other one with the average of overlapping windows :data:`~danae_lite.research.methods.PREDICT_STRIDE`
-    samples apart (:func:`~danae_lite.core.inference.predict`).
+    samples apart (:func:`~danae_lite.danae.predict.predict`).
     The same network on the same inputs earlier in this process: the stored output (:data:`memo`)."""
     key = (network_digest(res), digest(np.asarray(x, dtype=float)), PREDICT_STRIDE)
     found = memo.get(key)

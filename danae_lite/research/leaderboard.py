@@ -2,9 +2,9 @@
 
 :func:`run_leaderboard` does, in order:
 
-1. find the ground-truth glitches of every recording (:func:`danae_lite.core.groundtruth.clean_mask`);
+1. find the ground-truth glitches of every recording (:func:`danae_lite.data.groundtruth.clean_mask`);
 2. estimate the sensor -> body rotation and the heading of magnetic north on the training
-   recordings only (:func:`danae_lite.core.alignment.estimate_alignment`) and rotate every
+   recordings only (:func:`danae_lite.data.alignment.estimate_alignment`) and rotate every
    recording's sensors into the body frame (none for an experiment whose frames are already
    aligned, ``exp.aligned``: BROAD);
 3. fit every method (:mod:`danae_lite.research.registry`: the baselines of :mod:`danae_lite.research.baselines`
@@ -36,17 +36,17 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from . import broad_benchmark
-from ..core import metrics
-from ..core.alignment import FrameAlignment, estimate_alignment
-from ..core.angles import ANGLES, euler_to_quat
-from ..core.datasets import Experiment
-from ..core.groundtruth import clean_mask, glitch_table
-from ..core.networks import NetworkJob, pretrain
+from ..evaluate import metrics
+from ..data.alignment import FrameAlignment, estimate_alignment
+from ..angles import ANGLES, euler_to_quat
+from ..data.experiments import Experiment
+from ..data.groundtruth import clean_mask, glitch_table
+from ..danae.networks import NetworkJob, pretrain
 from .methods import Context, Method
-from ..core.recording import Recording
+from ..data.recording import Recording
 from .registry import METHODS, is_method_name, make_method
-from ..core.scoring import SUBSETS, plain, score_rows, seed_metrics
-from ..core.train import TrainConfig
+from ..evaluate.scoring import SUBSETS, plain, score_rows, seed_metrics
+from ..danae.train import TrainConfig
 
 if TYPE_CHECKING:
     import matplotlib.pyplot as plt
@@ -73,7 +73,7 @@ class Leaderboard:
     """``{method: {test recording: [(N, 3) euler, one per seed]}}`` [rad], ground-truth frame."""
     alignment: FrameAlignment
     glitches: pd.DataFrame
-    """:func:`danae_lite.core.groundtruth.glitch_table` of every recording (train and test)."""
+    """:func:`danae_lite.data.groundtruth.glitch_table` of every recording (train and test)."""
     clean: dict[str, NDArray[np.bool_]]
     seconds: dict[str, float]
     """Wall time per method (fit + predict) and ``total`` [s]."""
@@ -155,13 +155,13 @@ class Leaderboard:
     def plot(self, samples: str = "clean") -> "plt.Figure":
         """RMSE [rad] per method on ``samples``: one horizontal-bar panel per angle on a linear
         axis (roll and pitch share theirs), bars in the method palette
-        (:func:`danae_lite.core.plots.method_color`), hatched where the method looks ahead (not
+        (:func:`danae_lite.plots.method_color`), hatched where the method looks ahead (not
         causal), each bar labelled with its value; a method without an estimate of an angle
         is labelled so instead of drawn."""
         import matplotlib.pyplot as plt
         from matplotlib.patches import Patch
 
-        from ..core.plots import angle_label, method_color, use_style
+        from ..plots import angle_label, method_color, use_style
 
         use_style()
         w = self.wide("rmse", samples).astype(float)
@@ -262,7 +262,7 @@ def trial_figures(rec: Recording, per_seed: Sequence[NDArray[np.float64]]
     ``rec.meta["gt_valid"]`` hold (every sample when the recording has neither, e.g. a
     simulated one); ``n`` is their number. A prediction without a heading (NaN yaw: RIANN)
     gets the true yaw, so that only its inclination counts: its total and heading are NaN.
-    Mean and sample std over seeds by :func:`danae_lite.core.metrics.spread` (std NaN with one
+    Mean and sample std over seeds by :func:`danae_lite.evaluate.metrics.spread` (std NaN with one
     seed); (NaN, NaN) for a figure some seed lacks.
     """
     n = len(rec)
@@ -288,7 +288,7 @@ def trial_figures(rec: Recording, per_seed: Sequence[NDArray[np.float64]]
 def _rows(name: str, causal: bool, preds: dict[str, list[NDArray[np.float64]]], exp: Experiment,
           clean: dict[str, NDArray[np.bool_]]) -> list[dict[str, Any]]:
     """The paper's metrics on all test samples taken together (all / clean) per angle, mean
-    over seeds (:func:`danae_lite.core.scoring.score_rows`)."""
+    over seeds (:func:`danae_lite.evaluate.scoring.score_rows`)."""
     truth = np.concatenate([r.euler for r in exp.test])
     ok = np.concatenate([clean[r.name] for r in exp.test])
     n_seeds = len(next(iter(preds.values())))
@@ -312,21 +312,21 @@ def run_leaderboard(
 
     Parameters
     ----------
-    exp : the recordings (:func:`danae_lite.core.datasets.load_experiment` or the CLI's selection).
+    exp : the recordings (:func:`danae_lite.data.experiments.load_experiment` or the CLI's selection).
     methods : names from :data:`danae_lite.research.baselines.METHODS`, ``danae-res[<filter>]`` or ``danae-safe[<filter>]``
-        (:class:`danae_lite.research.denoiser.DanaeRes` on that filter).
+        (:class:`danae_lite.research.danae_res.DanaeRes` on that filter).
     seeds : DANAE training seeds (one network per angle and seed).
-    train_config : DANAE settings; default the paper's (:class:`~danae_lite.core.train.TrainConfig`).
+    train_config : DANAE settings; default the paper's (:class:`~danae_lite.danae.train.TrainConfig`).
     cache : trained-network cache folder; None (default): no cache. Entry points pass the
-        folder of their settings (:class:`danae_lite.config.RunSettings`).
+        folder of their settings (:class:`danae_lite.runtime.RunSettings`).
     progress : show a progress bar over the methods (and DANAE's training bars).
     extra : further unfitted :class:`~danae_lite.research.methods.Method` objects (e.g. the variants
         of :mod:`danae_lite.research.variants`), fitted and evaluated after ``methods`` under their ``name``.
     align : None (default): estimate the frame alignment on the training recordings, or take
         the identity when ``exp.aligned``, and give every method the rotated specific force;
         False: the recordings exactly as loaded, sensor signals and frames untouched (as the
-        paper's experiment, :func:`danae_lite.core.pipeline.reproduce`, runs them).
-    jobs : worker processes for the networks of each method (:mod:`danae_lite.core.networks`).
+        paper's experiment, :func:`danae_lite.paper.pipeline.reproduce`, runs them).
+    jobs : worker processes for the networks of each method (:mod:`danae_lite.danae.networks`).
     """
     if progress:  # the notebook widget when available
         from tqdm.auto import tqdm

@@ -4,7 +4,7 @@ A chapter fits the same library filters, and runs the same trained networks, on 
 recordings in several sections (each split of a cross-validation, each table that uses
 them), and several chapters run the same ones again. The results depend only on the code,
 the parameters and the input arrays, so each distinct run is computed once:
-:func:`~danae_lite.research.filters.run_filter` and
+:func:`~danae_lite.research.ahrs.filters.run_filter` and
 :func:`~danae_lite.research.features.run_network` keep theirs in a :class:`RunMemo`, keyed by
 what ran, its parameters and a :func:`digest` of the input arrays.
 
@@ -16,7 +16,7 @@ computes it and of every module of the package that module imports, the versions
 libraries they import, and the CPU's vector extensions (numpy and torch round differently on
 another CPU). Editing any of that code makes every run of that memo new; editing a chapter,
 or code the runs do not import, keeps them. The trained networks themselves are kept by
-:mod:`danae_lite.core.networks`.
+:mod:`danae_lite.danae.networks`.
 """
 from __future__ import annotations
 
@@ -98,7 +98,7 @@ class RunStore:
     def prune(self) -> list[Path]:
         """Remove the least recently used runs until the folder is within ``max_bytes``."""
         _written[self.folder] = 0
-        from ..core.networks import prune_folder  # not at import: setup() of the KF chapters loads no torch
+        from ..danae.networks import prune_folder  # not at import: setup() of the KF chapters loads no torch
 
         return prune_folder(self.folder, "*.npy", self.max_bytes)
 
@@ -118,7 +118,7 @@ def use_store(store: RunStore | None) -> None:
 
 def carrying_store(fn: Callable[..., R]) -> Callable[..., R]:
     """``fn`` (a module-level function) wrapped so that, called in a worker process, it first
-    uses this process's :class:`RunStore`: what :func:`~danae_lite.core.networks.in_processes`
+    uses this process's :class:`RunStore`: what :func:`~danae_lite.danae.networks.in_processes`
     is given where the workers run memoised computations."""
     return functools.partial(_call_with_store, _store, fn)
 
@@ -135,7 +135,7 @@ def code_fingerprint(module: str) -> str:
     directly or not, except this one (which stores and finds runs but computes none); the
     installed versions of the other libraries those import; and the CPU vector extensions
     numpy and torch dispatch to."""
-    from ..core.networks import module_code
+    from ..danae.networks import module_code
 
     h = hashlib.blake2b(digest_size=16)
     ours, theirs = _import_closure(module)

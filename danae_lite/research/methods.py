@@ -8,7 +8,7 @@ filter) asks the context for it by name (:meth:`Context.method`), so that each i
 grid-searched, once per context.
 
 The classical methods are in :mod:`danae_lite.research.baselines`, the learned ones in
-:mod:`danae_lite.research.variants` and :mod:`danae_lite.research.denoiser`; :mod:`danae_lite.research.registry` turns a
+:mod:`danae_lite.research.variants` and :mod:`danae_lite.research.danae_res`; :mod:`danae_lite.research.registry` turns a
 leaderboard name into a method.
 """
 from __future__ import annotations
@@ -22,18 +22,18 @@ import numpy as np
 import pandas as pd
 from numpy.typing import NDArray
 
-from ..core.alignment import FrameAlignment
-from ..core.angles import euler_error_angle
-from ..core.metrics import errors, rmse
-from ..core.networks import NetworkJob
-from ..core.recording import Recording
-from ..core.train import TrainConfig
+from ..data.alignment import FrameAlignment
+from ..angles import euler_error_angle
+from ..evaluate.metrics import errors, rmse
+from ..danae.networks import NetworkJob
+from ..data.recording import Recording
+from ..danae.train import TrainConfig
 
 Array = NDArray[np.float64]
 
 PREDICT_STRIDE = 4
 """Stride [samples] of the overlapping windows with which the learned methods of this package
-predict (non-causal networks: :func:`danae_lite.core.inference.predict`); each interior sample
+predict (non-causal networks: :func:`danae_lite.danae.predict.predict`); each interior sample
 is then the mean of ``ceil(L / 4)`` window predictions (5 for the paper's 20-sample window)
 instead of ``L``, for a quarter of the work. Chosen on the validation tails of the training
 recordings (chapter 5's nine paper networks), never on a test recording: against stride 1 the
@@ -76,7 +76,7 @@ class Method:
     def network_jobs(self, ctx: Context) -> list[NetworkJob]:
         """The networks ``fit(ctx)`` trains, as jobs, without training them (none here): a
         caller fitting several methods or splits trains them together first
-        (:func:`danae_lite.core.networks.pretrain`), and each ``fit`` finds its own in the cache."""
+        (:func:`danae_lite.danae.networks.pretrain`), and each ``fit`` finds its own in the cache."""
         return []
 
 
@@ -97,7 +97,7 @@ class Context:
     cache: str | os.PathLike[str] | None = None
     """Trained-network cache folder (None: no cache), from the entry point."""
     jobs: int = 1
-    """Worker processes for the networks (:func:`danae_lite.core.networks.train_networks`)."""
+    """Worker processes for the networks (:func:`danae_lite.danae.networks.train_networks`)."""
     progress: bool = False
     fitted: dict[str, Method] = field(default_factory=dict)
     """Methods already fitted on ``train`` by name, so that a method another one builds on

@@ -2,10 +2,10 @@
 
 * the names of :data:`~danae_lite.research.baselines.METHODS` (the baselines and the library filters of
   :mod:`danae_lite.research.baselines`, and the paper's DANAE), in table order;
-* ``danae-res[<filter>]``: the recommended denoiser (:class:`danae_lite.research.denoiser.DanaeRes`) on
+* ``danae-res[<filter>]``: the recommended denoiser (:class:`danae_lite.research.danae_res.DanaeRes`) on
   the output of a filter of :data:`~danae_lite.research.baselines.METHODS`;
 * ``danae-safe[<filter>]``: DANAE-res with a per-sample fallback and an error bar
-  (:class:`danae_lite.research.fallback.DanaeSafe`).
+  (:class:`danae_lite.research.danae_safe.DanaeSafe`).
 
 Further methods (the variants of :mod:`danae_lite.research.variants`, a method of one's own) are given
 to the leaderboard as objects (``run_leaderboard(..., extra=[...])``), not by name.
@@ -14,8 +14,8 @@ from __future__ import annotations
 
 from .baselines import METHODS, denoiser_name, is_method_name
 from .baselines import make_method as make_baseline
-from .denoiser import DanaeRes
-from .fallback import DanaeSafe
+from .danae_res import DanaeRes
+from .danae_safe import DanaeSafe
 from .methods import Method
 
 __all__ = ["METHODS", "is_method_name", "make_method"]

@@ -1,8 +1,8 @@
 """On-line DANAE: causal batch inference, a sample-by-sample streamer, latency measurement.
 
-The paper's networks (:class:`~danae_lite.core.model.DanaePaper`, :class:`~danae_lite.core.model.DanaeBig`)
+The paper's networks (:class:`~danae_lite.danae.model.DanaePaper`, :class:`~danae_lite.danae.model.DanaeBig`)
 denoise a 20-sample window using all of it, future samples included, so an estimate for
-time ``t`` is only available ``L - 1`` samples later. :class:`~danae_lite.core.model.DanaeCausal`
+time ``t`` is only available ``L - 1`` samples later. :class:`~danae_lite.danae.model.DanaeCausal`
 (``TrainConfig(arch="causal")``) is causal: its output for sample ``t`` depends only on input
 samples ``t - R + 1 .. t``, ``R`` = its ``receptive_field`` (31 by default, 0.31 s at 100 Hz).
 
@@ -29,9 +29,9 @@ from typing import Any
 import numpy as np
 import torch
 
-from ..core.model import DanaeCausal
-from ..core.train import TorchSettings, as_2d
-from ..core.train_types import network_of
+from ..danae.model import DanaeCausal
+from ..danae.train import TorchSettings, as_2d
+from ..danae.train_types import network_of
 
 __all__ = ["StreamingDanae", "measure_latency", "predict_causal"]
 
@@ -48,7 +48,7 @@ def predict_causal(
 
     The recording is edge-padded on the left with ``R - 1`` copies of ``x[0]``
     (``R = net.receptive_field``) and run through the network's unpadded convolutions
-    (:meth:`~danae_lite.core.model.DanaeCausal.forward_valid`) in chunks of ``chunk`` outputs,
+    (:meth:`~danae_lite.danae.model.DanaeCausal.forward_valid`) in chunks of ``chunk`` outputs,
     consecutive chunks overlapping by ``R - 1`` input samples, so the result does not depend
     on ``chunk`` (beyond float32 rounding) and equals running :class:`StreamingDanae` over
     ``x``.

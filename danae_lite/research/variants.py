@@ -13,13 +13,13 @@ evaluates it exactly like the baselines (``run_leaderboard(..., extra=[...])``).
   sin/cos) and the Euler rates from the gyro — 11 channels, standardised per channel with the
   training recordings' mean and std (``TrainConfig(normalize="standard")``).
 * **Causal** (``arch="causal"``, :data:`~danae_lite.research.features.CAUSAL_SETTINGS`): the network
-  of :class:`~danae_lite.core.model.DanaeCausal`; each output sample depends only on present and
+  of :class:`~danae_lite.danae.model.DanaeCausal`; each output sample depends only on present and
   past inputs, so it runs on-line (:class:`~danae_lite.research.streaming.StreamingDanae`). The
   features above are per-sample, so causality is kept end to end when the source filter is
   causal.
 
 The input channels, the causal settings and the network runner are shared with DANAE-res
-(:mod:`danae_lite.research.denoiser`) in :mod:`danae_lite.research.features`.
+(:mod:`danae_lite.research.danae_res`) in :mod:`danae_lite.research.features`.
 """
 from __future__ import annotations
 
@@ -30,15 +30,15 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from .baselines import make_method
-from ..core.datasets import Experiment
-from .features import (ANGLE_CHANNELS, CAUSAL_SETTINGS, MULTI_CHANNELS, from_circle, multi_input,
-                       research_config, run_network, to_circle)
+from ..data.experiments import Experiment
+from .features import (ANGLE_CHANNELS, CAUSAL_SETTINGS, MULTI_CHANNELS, from_circle,
+                       multi_input, research_config, run_network, to_circle)
 from .leaderboard import run_leaderboard
 from .methods import Context, Method, total_error_rmse
-from ..core.metrics import reduction_pct
-from ..core.networks import NetworkJob, network_jobs, train_networks
-from ..core.recording import Recording
-from ..core.train import TrainConfig, validation_tail
+from ..evaluate.metrics import reduction_pct
+from ..danae.networks import NetworkJob, network_jobs, train_networks
+from ..data.recording import Recording
+from ..danae.train import TrainConfig, validation_tail
 
 Array = NDArray[np.float64]
 
@@ -52,7 +52,7 @@ class DanaeOn(Method):
     inputs : ``"angles"`` (the 4 circle channels) or ``"multi"`` (:data:`~danae_lite.research.features.MULTI_CHANNELS`).
     name : leaderboard name; default ``"danae[<source>]"`` / ``"danae-multi[<source>]"``
         (``-causal`` appended for the causal architecture).
-    **train_overrides : fields of :class:`~danae_lite.core.train.TrainConfig` replacing the
+    **train_overrides : fields of :class:`~danae_lite.danae.train.TrainConfig` replacing the
         context's settings (e.g. ``arch="causal", window=64, loss_start=30``).
     """
 
@@ -86,7 +86,7 @@ class DanaeOn(Method):
         return research_config(self.ctx.train_config, seed, capped=False, normalize="standard", **self.overrides)
 
     def _training(self, ctx: Context) -> dict[str, Any]:
-        """The arguments of :func:`~danae_lite.core.networks.train_networks` for ``ctx``
+        """The arguments of :func:`~danae_lite.danae.networks.train_networks` for ``ctx``
         (sets :attr:`ctx` and :attr:`base`, the fitted source)."""
         if self.source == "danae":
             raise ValueError("a DANAE variant cannot take DANAE's own output as its source")
@@ -120,7 +120,7 @@ class DanaeOn(Method):
 
 def validation_block(n: int, config: TrainConfig) -> slice:
     """The tail of an ``n``-sample training recording that training held out for validation
-    (``max(window, round(val_fraction n))`` samples, as :func:`danae_lite.core.train.train` splits)."""
+    (``max(window, round(val_fraction n))`` samples, as :func:`danae_lite.danae.train.train` splits)."""
     n_val = validation_tail(n, config.window, config.val_fraction)
     return slice(n - n_val, n)
 
@@ -212,7 +212,7 @@ def generalisation(scenarios: dict[str, Any], *, sources: tuple[str, ...] = ("pa
                    cache: Any = None, methods: tuple[str, ...] | None = None, jobs: int = 1) -> pd.DataFrame:
     """Train on each scenario's training recordings, test on every scenario's test recordings.
 
-    ``scenarios`` maps a label to an :class:`~danae_lite.core.datasets.Experiment`. For each (train,
+    ``scenarios`` maps a label to an :class:`~danae_lite.data.experiments.Experiment`. For each (train,
     test) pair, the filters in ``sources`` and ``DanaeOn(source)`` are fitted on the training
     side and evaluated on the test side (clean samples). Returns one row per pair, source and
     angle: the filter's RMSE, DANAE's RMSE (mean over seeds) and the gain [%]

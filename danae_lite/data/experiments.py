@@ -1,0 +1,211 @@
+"""Find the real datasets in the data directory, or let the simulator stand in.
+
+The data directory (an argument; the entry points take it from ``--data-dir`` or ``DANAE_DATA``,
+see :mod:`danae_lite.runtime`) holds the datasets in their original layout:
+
+* ``oxiod/handheld/data1/syn/imuK.csv`` + ``viK.csv`` for K = 2, 3, 4, 7: train on imu3, imu4,
+  imu7, test on imu2. (The paper used OxIOD's slow-walking set, which is not available here;
+  handheld/data1 is the closest set at hand.)
+* ``ucs/full_dataset/imu_adis.txt``: first 80 % train, last 20 % test, as the paper.
+
+A missing ``oxiod/`` (or ``ucs/``) folder means "no real data": the simulator
+stands in (:func:`danae_lite.data.simulate.simulate`), with the same split shape: four
+``"handheld"`` recordings (seeds ``seed + 0..3``, test = the first) or one
+``"underwater"`` recording split 80/20. A folder that exists but lacks the expected files raises DataError: whoever put it
+there meant real data.
+
+Fast mode (the ``fast`` argument) runs every step on little data, so that a chapter runs in
+a minute or two (``make test``) with the same code path as in full mode: it keeps the first
+:data:`FAST_SAMPLES` samples of each real OxIOD recording, keeps the real UCS recording whole
+(it is only ~20k samples at 10 Hz) and simulates :data:`FAST_DURATION` seconds per recording
+instead of the scenario default (180 s handheld, 1950 s underwater). (The research chapters'
+datasets, the OxIOD motions and BROAD, are found by :mod:`danae_lite.data.oxiod_motions` and
+:mod:`danae_lite.data.broad`, with the same helpers.)
+"""
+from __future__ import annotations
+
+import os
+from dataclasses import dataclass
+from pathlib import Path
+
+from . import oxiod, ucs
+from .recording import DataError, Recording
+
+OXIOD_FOLDER = ("handheld", "data1")
+"""Setting and folder of the OxIOD recordings used."""
+OXIOD_TRAIN = (3, 4, 7)
+"""OxIOD recordings (K of imuK) used for training."""
+OXIOD_TEST = (2,)
+"""OxIOD recordings used for testing."""
+PAPER_SPLIT_FOLDER = ("slow walking", "data1")
+"""Setting and folder of the paper's own OxIOD split (``--split paper``)."""
+PAPER_SPLIT_TRAIN = (2, 3, 4, 5, 6, 7, 8)
+"""The training recordings (K of imuK) in :data:`PAPER_SPLIT_FOLDER`: the paper names none; the
+authors' code trains on imu2-imu8 (its instructions mention imu2-imu7)."""
+PAPER_SPLIT_TEST = (1,)
+"""The paper's test recording in :data:`PAPER_SPLIT_FOLDER`."""
+UCS_RELPATH = Path("full_dataset") / "imu_adis.txt"
+"""Location of the ADIS file inside ``<data dir>/ucs``."""
+TRAIN_FRACTION = 0.8
+"""Share of the UCS recording used for training (the first part)."""
+FAST_SAMPLES = 1500
+"""Samples kept per real OxIOD recording in fast mode (15 s at 100 Hz)."""
+FAST_DURATION = {"handheld": 20.0, "underwater": 300.0}
+"""Simulated duration per recording in fast mode [s]."""
+NAMES = ("oxiod", "ucs")
+
+
+
+@dataclass
+class Experiment:
+    """The recordings of one experiment and where they came from.
+
+    ``name`` is ``"oxiod"``, ``"ucs"`` (here) or ``"broad"`` (:mod:`danae_lite.data.broad`); ``data`` is ``"real"`` or ``"simulated"``;
+    ``note`` is one sentence for people saying which data is used. ``aligned`` says that the
+    sensor axes already are the ground truth's body axes and its heading is magnetic north (as
+    the BROAD benchmark provides them), so the leaderboard estimates no frame alignment.
+    """
+
+    name: str
+    data: str
+    train: list[Recording]
+    test: list[Recording]
+    note: str
+    aligned: bool = False
+
+
+def existing_dir(path: str | os.PathLike[str] | None) -> Path | None:
+    """``path`` resolved, or None for None. A path that is not a directory raises
+    ``FileNotFoundError`` naming it: whoever names a data directory means it."""
+    if path is None:
+        return None
+    p = Path(path).expanduser().resolve()
+    if not p.is_dir():
+        raise FileNotFoundError(f"data directory {p} is not a directory")
+    return p
+
+
+def fast_cut(recs: list[Recording], fast: bool, limit: int) -> list[Recording]:
+    """Fast mode: the first ``limit`` samples of each recording (names kept); else ``recs``."""
+    return [r.slice(0, limit, name=r.name) if fast and len(r) > limit else r for r in recs]
+
+
+def fast_note(fast: bool, limit: int) -> str:
+    """The phrase a note adds in fast mode, e.g. `` (fast mode: first 6000 samples each)``."""
+    return f" (fast mode: first {limit} samples each)" if fast else ""
+
+
+def oxiod_root(data_dir: str | os.PathLike[str] | None = None) -> Path | None:
+    """Return ``<data dir>/oxiod`` if that folder exists, else None."""
+    base = existing_dir(data_dir)
+    root = base / "oxiod" if base is not None else None
+    return root if root is not None and root.is_dir() else None
+
+
+def ucs_file(data_dir: str | os.PathLike[str] | None = None) -> Path | None:
+    """Return ``<data dir>/ucs/full_dataset/imu_adis.txt`` if it exists, else None."""
+    base = existing_dir(data_dir)
+    path = base / "ucs" / UCS_RELPATH if base is not None else None
+    return path if path is not None and path.is_file() else None
+
+
+def where(base: Path | None) -> str:
+    """How a note names the data directory: ``under <base>``, or that none was given."""
+    return "(no data directory given)" if base is None else f"under {base}"
+
+
+def _real_oxiod(root: Path, fast: bool) -> Experiment:
+    syn = root.joinpath(*OXIOD_FOLDER, "syn")
+    needed = [syn / f"{p}{k}.csv" for k in OXIOD_TEST + OXIOD_TRAIN for p in ("imu", "vi")]
+    missing = [str(p) for p in needed if not p.is_file()]
+    if missing:
+        raise DataError(f"{root} exists but lacks {', '.join(missing)}; expected the original OxIOD layout "
+                        "<oxiod>/handheld/data1/syn/imuK.csv + viK.csv")
+
+    train, test = (load_oxiod_files([syn / f"imu{k}.csv" for k in ks], fast) for ks in (OXIOD_TRAIN, OXIOD_TEST))
+    cut = fast_note(fast, FAST_SAMPLES)
+    note = (f"Real OxIOD from {root}: train {', '.join(f'imu{k}' for k in OXIOD_TRAIN)}; test "
+            f"{', '.join(f'imu{k}' for k in OXIOD_TEST)} of {'/'.join(OXIOD_FOLDER)}{cut}; the paper's "
+            "slow-walking set is not available, so handheld/data1 stands in for it.")
+    return Experiment("oxiod", "real", train, test, note)
+
+
+def _real_ucs(path: Path) -> Experiment:
+    rec = ucs.load_recording(path)
+    train, test = ucs.split_train_test(rec, TRAIN_FRACTION)
+    note = (f"Real UCS from {path}: first {TRAIN_FRACTION:.0%} ({len(train)} samples) train, "
+            f"last {1 - TRAIN_FRACTION:.0%} ({len(test)} samples) test.")
+    return Experiment("ucs", "real", [train], [test], note)
+
+
+def load_oxiod_files(paths: list[Path], fast: bool) -> list[Recording]:
+    """OxIOD recordings ``imuK.csv`` (with ``viK.csv`` beside each), cut in fast mode."""
+    return fast_cut([oxiod.load_recording(p) for p in paths], fast, FAST_SAMPLES)
+
+
+def load_experiment(name: str = "oxiod", data_dir: str | os.PathLike[str] | None = None, *,
+                    fast: bool = False, seed: int = 0, verbose: bool = True) -> Experiment:
+    """Load the train/test recordings of ``"oxiod"`` or ``"ucs"``, real if found, else simulated
+    (the BROAD benchmark's: :func:`danae_lite.data.broad.load_experiment`).
+
+    Parameters
+    ----------
+    name : ``"oxiod"`` or ``"ucs"``.
+    data_dir : data directory holding ``oxiod/`` and/or ``ucs/``; None: the simulator stands in.
+    fast : fast mode (see the module docstring).
+    seed : base seed of the simulated stand-in.
+    verbose : print the experiment's note.
+    """
+    if name not in NAMES:
+        raise ValueError(f"unknown experiment {name!r}; valid: {', '.join(NAMES)}")
+    base = existing_dir(data_dir)
+    if name == "oxiod":
+        root = oxiod_root(base) if base is not None else None
+        exp = _real_oxiod(root, fast) if root is not None else _simulated_oxiod(base, fast, seed)
+    else:
+        folder = base / "ucs" if base is not None else None
+        path = ucs_file(base) if base is not None else None
+        if folder is not None and folder.is_dir() and path is None:
+            raise DataError(f"{folder} exists but lacks {folder / UCS_RELPATH}; expected the UCS layout "
+                            "<ucs>/full_dataset/imu_adis.txt")
+        exp = _real_ucs(path) if path is not None else _simulated_ucs(base, fast, seed)
+    if verbose:
+        print(exp.note)
+    return exp
+
+
+def simulated_experiment(name: str = "oxiod", *, fast: bool = False, seed: int = 0,
+                         verbose: bool = True) -> Experiment:
+    """The simulator's stand-in for ``"oxiod"`` (handheld scenario) or ``"ucs"``
+    (underwater), whatever data directory is set: the same recordings :func:`load_experiment`
+    falls back to."""
+    if name not in NAMES:
+        raise ValueError(f"unknown experiment {name!r}; valid: {', '.join(NAMES)}")
+    make = {"oxiod": _simulated_oxiod, "ucs": _simulated_ucs}[name]
+    exp = make(None, fast, seed)
+    for label in ("OxIOD", "UCS"):
+        exp.note = exp.note.replace(f"No real {label} data found {where(None)}: ", "Simulated: ")
+    if verbose:
+        print(exp.note)
+    return exp
+
+
+def _simulated_oxiod(base: Path | None, fast: bool, seed: int) -> Experiment:
+    from .simulate import simulate
+
+    duration = FAST_DURATION["handheld"] if fast else None
+    recs = [simulate("handheld", duration=duration, seed=seed + i, name=f"sim-handheld-{i}") for i in range(4)]
+    note = (f"No real OxIOD data found {where(base)}: the handheld simulator stands in "
+            f"(train sim-handheld-1..3, test sim-handheld-0, {recs[0].duration:g} s each).")
+    return Experiment("oxiod", "simulated", recs[1:], recs[:1], note)
+
+
+def _simulated_ucs(base: Path | None, fast: bool, seed: int) -> Experiment:
+    from .simulate import simulate
+
+    duration = FAST_DURATION["underwater"] if fast else None
+    rec = simulate("underwater", duration=duration, seed=seed, name="sim-underwater-0")
+    train, test = ucs.split_train_test(rec, TRAIN_FRACTION)
+    note = (f"No real UCS data found {where(base)}: the underwater simulator stands in "
+            f"({rec.duration:g} s, first {TRAIN_FRACTION:.0%} train, last {1 - TRAIN_FRACTION:.0%} test).")
+    return Experiment("ucs", "simulated", [train], [test], note)
