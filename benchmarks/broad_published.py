@@ -39,6 +39,7 @@ except ImportError:  # run from a checkout without `pip install -e .`
 
 from danae_lite.data import broad
 from danae_lite.research import broad_benchmark
+from danae_lite.research.ahrs import broad_reference
 from danae_lite.runtime import data_dir as resolve_data_dir
 
 SHORT = {"total_rmse_deg": "total", "heading_rmse_deg": "heading", "inclination_rmse_deg": "incl"}
@@ -59,8 +60,8 @@ def parse_args(argv: Sequence[str] | None) -> argparse.Namespace:
                    help="folder of results_<filter>_average_rmse.json (default: beside the data dir, "
                         "reference/broad_published)")
     p.add_argument("--out", type=Path, default=None, help="write the per-trial table to this CSV file")
-    p.add_argument("--filters", nargs="+", choices=sorted(broad_benchmark.BENCHMARK_FILTERS),
-                   default=list(broad_benchmark.BENCHMARK_FILTERS), help="filters to run (default: both)")
+    p.add_argument("--filters", nargs="+", choices=sorted(broad_reference.BENCHMARK_FILTERS),
+                   default=list(broad_reference.BENCHMARK_FILTERS), help="filters to run (default: both)")
     p.add_argument("--trials", nargs="+", default=None,
                    help="only these trials (names or numbers, e.g. 02 10); default: all found")
     p.add_argument("--no-progress", action="store_true", help="no tqdm progress bar")
@@ -92,7 +93,7 @@ def main(argv: Sequence[str] | None = None) -> pd.DataFrame:
         for name in args.filters:
             bar.set_postfix_str(f"{rec.name[:24]} {name}")
             t = time.perf_counter()
-            q = broad_benchmark.BENCHMARK_FILTERS[name](rec.gyro, rec.acc, rec.mag, rec.fs, **published[name].params)
+            q = broad_reference.BENCHMARK_FILTERS[name](rec.gyro, rec.acc, rec.mag, rec.fs, **published[name].params)
             seconds[name] += time.perf_counter() - t
             ours = broad_benchmark.evaluate(rec, q).as_dict()
             pub = published[name].trials.get(rec.name)

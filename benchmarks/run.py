@@ -61,11 +61,13 @@ import torch
 
 from danae_lite.research.ahrs import filters
 from danae_lite.danae.seeding import default_device
-from danae_lite.kalman.filter import KFConfig, run_kf
+from danae_lite.kalman.filter import run_kf
+from danae_lite.kalman.model import KFConfig
 from danae_lite.data.simulate import simulate
 from danae_lite.danae.model import DanaePaper
 from danae_lite.danae.predict import predict
-from danae_lite.danae.train import TrainConfig, _default_threads, train
+from danae_lite.danae.train import _default_threads, train
+from danae_lite.danae.train_types import TrainConfig
 
 KF_TARGET = 250_000.0
 """Samples per second the KF should reach (informative only)."""

@@ -52,6 +52,7 @@ part of the package: ``tools/``.
 * :mod:`~danae_lite.research.memo`  each distinct filter run and network output computed once per process
 * :mod:`~danae_lite.research.ahrs.filters`  established attitude filters (Fusion, VQF, Madgwick, Mahony, RIANN)
 * :mod:`~danae_lite.research.ahrs.grid`  Madgwick's and Mahony's filters for a whole grid of gains in one pass
+* :mod:`~danae_lite.research.ahrs.broad_reference`  Madgwick's and Mahony's filters as the BROAD benchmark ran them
 * :mod:`~danae_lite.research.baselines`  classical methods of the leaderboard (tuned KF, low-pass, linear map, ...)
 * :mod:`~danae_lite.research.features`  input channels and causal network shared by the learned methods
 * :mod:`~danae_lite.research.variants`  DANAE behind any filter, multi-input, causal, ablations
@@ -59,7 +60,7 @@ part of the package: ``tools/``.
 * :mod:`~danae_lite.research.danae_safe`  DANAE-res with a per-sample fallback and a calibrated error bar
 * :mod:`~danae_lite.research.streaming`  causal networks one sample at a time
 * :mod:`~danae_lite.research.registry`  leaderboard names -> methods
-* :mod:`~danae_lite.research.broad_benchmark`  the BROAD metric, its reference filters, the published figures
+* :mod:`~danae_lite.research.broad_benchmark`  the BROAD metric and the published figures
 * :mod:`~danae_lite.research.leaderboard`  every method on the same recordings and metrics
 * :mod:`~danae_lite.research.crossval`  folds: leave one recording out, transfer between motions, BROAD
 * :mod:`~danae_lite.research.verdicts`  the wording of a verdict drawn from a difference over seeds or recordings

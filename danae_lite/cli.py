@@ -62,7 +62,7 @@ from .data.oxiod_motions import FAST_MOTION_RECORDINGS
 if TYPE_CHECKING:
     from .runtime import RunSettings
     from .paper.pipeline import Reproduction
-    from .danae.train import TrainConfig
+    from .danae.train_types import TrainConfig
 
 __all__ = ["main", "build_parser"]
 
@@ -329,7 +329,7 @@ def _train_config(args: argparse.Namespace, settings: RunSettings) -> TrainConfi
     then ``--epochs``/``--max-steps``/``--threads`` as given."""
     from dataclasses import replace
 
-    from .danae.train import TrainConfig
+    from .danae.train_types import TrainConfig
 
     # the paper's settings, validated on windows that tile the tails as in chapters 3-4
     config = settings.train_config(TrainConfig(epochs=PAPER_EPOCHS[args.experiment], val_stride=20))
@@ -497,7 +497,7 @@ def folds(args: argparse.Namespace) -> int:
 
 def _save_models(rep: Reproduction, folder: Path) -> list[Path]:
     """One checkpoint per angle and seed (:func:`danae_lite.danae.train.save`)."""
-    from .danae.train import save
+    from .danae.checkpoints import save
 
     exp = rep.experiment
     return [save(res, folder / f"danae_{angle}_seed{seed}.pt",

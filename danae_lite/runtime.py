@@ -42,7 +42,7 @@ from .data.experiments import existing_dir
 
 if TYPE_CHECKING:  # imported where used: the settings of the KF chapters load no torch
     from .danae.networks import NetworkCache
-    from .danae.train import TrainConfig
+    from .danae.train_types import TrainConfig
     from .research.memo import RunStore
 
 
@@ -247,7 +247,7 @@ class RunSettings:
         """``base`` (default the paper's :class:`~danae_lite.danae.train.TrainConfig`) with
         ``overrides``, this run's device, and in fast mode at most :data:`FAST_EPOCHS` epochs
         and :data:`FAST_MAX_STEPS` steps per network."""
-        from .danae.train import TrainConfig
+        from .danae.train_types import TrainConfig
 
         cfg = replace(base or TrainConfig(), **overrides)
         if cfg.device is None:

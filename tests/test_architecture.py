@@ -262,3 +262,93 @@ def test_the_checks_find_what_they_look_for(toy_package: Path):
     assert circles(graph) == [["cli", "kalman.filter", "research.leaderboard"]]
     assert upward_imports(graph) == ["kalman.filter -> research.leaderboard", "research.leaderboard -> cli"]
     assert env_reads(toy_package) == ["kalman.windows:5", "kalman.windows:6"]
+
+
+def _top_level_names(tree: ast.Module) -> tuple[set[str], set[str]]:
+    """(names a module defines, names it only imports) at its top level (inside top-level
+    ``if``/``try`` blocks too)."""
+    defined: set[str] = set()
+    imported: set[str] = set()
+    todo = list(tree.body)
+    while todo:
+        node = todo.pop()
+        if isinstance(node, (ast.If, ast.Try)):
+            if not (isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test)):
+                todo += [*node.body, *node.orelse, *getattr(node, "finalbody", []),
+                         *[s for h in getattr(node, "handlers", []) for s in h.body]]
+        elif isinstance(node, (ast.FunctionDef, ast.ClassDef, ast.AsyncFunctionDef)):
+            defined.add(node.name)
+        elif isinstance(node, (ast.Assign, ast.AnnAssign, ast.AugAssign)):
+            targets = node.targets if isinstance(node, ast.Assign) else [node.target]
+            defined.update(n.id for t in targets for n in ast.walk(t) if isinstance(n, ast.Name))
+        elif isinstance(node, (ast.Import, ast.ImportFrom)):
+            imported.update((a.asname or a.name).split(".")[0] for a in node.names)
+    return defined, imported - defined
+
+
+def borrowed_names(sources: dict[str, tuple[str, bool]], package: Path) -> list[str]:
+    """``where: module.name`` for every import, in ``sources`` (name -> (source, is_package)), of a
+    private name of another module or of a name a module only re-exports (imported there, not
+    defined), and every ``module._name`` read of an imported module of the package."""
+    found = modules(package)
+    tops = {name: _top_level_names(ast.parse(path.read_text(encoding="utf-8"))) for name, path in found.items()}
+    problems = []
+    for where, (source, is_pkg) in sources.items():
+        tree = ast.parse(source)
+        module_aliases: dict[str, str] = {}
+        for node in ast.walk(tree):
+            if not isinstance(node, ast.ImportFrom):
+                continue
+            targets = _targets(node, where, is_pkg, package.name)
+            if not targets or targets[0] not in found:
+                continue
+            origin = targets[0]
+            for alias in node.names:
+                sub = f"{origin}.{alias.name}" if origin != "__init__" else alias.name
+                if sub in found:
+                    module_aliases[alias.asname or alias.name] = sub
+                    continue
+                defined, only_imported = tops[origin]
+                private = alias.name.startswith("_") and not alias.name.startswith("__")
+                if private or alias.name in only_imported:
+                    problems.append(f"{where}: {origin}.{alias.name}")
+        for node in ast.walk(tree):
+            if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
+                    and node.value.id in module_aliases and node.attr.startswith("_")
+                    and not node.attr.startswith("__")):
+                problems.append(f"{where}: {module_aliases[node.value.id]}.{node.attr}")
+    return sorted(set(problems))
+
+
+def chapter_sources() -> dict[str, tuple[str, bool]]:
+    """Each chapter's code cells, one source per cell (``stem[cell]``), as the check reads them."""
+    import json
+
+    out = {}
+    for nb in sorted((PACKAGE.parent / "notebooks").glob("[0-9][0-9]_*.ipynb")):
+        for i, cell in enumerate(json.loads(nb.read_text(encoding="utf-8"))["cells"]):
+            if cell["cell_type"] == "code":
+                src = "".join(cell["source"])
+                try:
+                    ast.parse(src)
+                except SyntaxError:  # IPython's %magic and !shell lines
+                    src = "\n".join(l for l in src.splitlines() if not l.lstrip().startswith(("%", "!")))
+                out[f"{nb.stem}[{i}]"] = (src, False)
+    return out
+
+
+def test_no_private_or_re_exported_name_is_used_across_modules():
+    """A module and a chapter import each name from the module that defines it, and never a
+    private name (``_x``) of another module: no re-export facades, no private crossings."""
+    sources = {name: (path.read_text(encoding="utf-8"), path.name == "__init__.py")
+               for name, path in modules(PACKAGE).items()}
+    assert borrowed_names({**sources, **chapter_sources()}, PACKAGE) == []
+
+
+def test_the_borrowed_name_check_finds_what_it_looks_for(toy_package: Path):
+    (toy_package / "kalman" / "model.py").write_text("import math\nK = 1\ndef _hidden():\n    pass\n")
+    (toy_package / "kalman" / "filter.py").write_text("from .model import K, _hidden\nfrom . import model\n"
+                                                      "x = model._hidden\n")
+    (toy_package / "cli.py").write_text("from danae_lite.kalman.filter import K\nfrom danae_lite.kalman.model import K\n")
+    sources = {name: (path.read_text(), path.name == "__init__.py") for name, path in modules(toy_package).items()}
+    assert borrowed_names(sources, toy_package) == ["cli: kalman.filter.K", "kalman.filter: kalman.model._hidden"]

@@ -16,6 +16,7 @@ from scipy.spatial.transform import Rotation, Slerp
 from danae_lite import angles
 from danae_lite.data import broad
 from danae_lite.research import broad_benchmark
+from danae_lite.research.ahrs import broad_reference
 from danae_lite.data.recording import DataError, Recording
 from danae_lite.data.simulate import MAG_REF
 
@@ -449,11 +450,11 @@ def test_initial_quat_matches_the_benchmark_formula_and_its_quirk():
     # level sensor, x axis east (NWU yaw -90°): the benchmark's initial state is exact
     for yaw_deg, expected_deg in ((-90.0, -90.0), (30.0, 150.0), (150.0, 30.0), (0.0, 180.0)):
         truth = Rotation.from_euler("ZYX", [yaw_deg, 0.0, 0.0], degrees=True)
-        q = broad_benchmark.benchmark_initial_quat(truth.inv().apply([0, 0, 9.81]), truth.inv().apply(MAG_REF))
+        q = broad_reference.benchmark_initial_quat(truth.inv().apply([0, 0, 9.81]), truth.inv().apply(MAG_REF))
         yaw = Rotation.from_quat(q).as_euler("ZYX", degrees=True)[0]
         assert abs((yaw - expected_deg + 180.0) % 360.0 - 180.0) < 1e-9, (yaw_deg, yaw)  # 180° - psi
     with pytest.raises(ValueError, match="not parallel"):
-        broad_benchmark.benchmark_initial_quat([0, 0, 1], [0, 0, 5])
+        broad_reference.benchmark_initial_quat([0, 0, 1], [0, 0, 5])
 
 
 def _smooth_inputs(n: int, fs: float, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
@@ -473,7 +474,7 @@ def test_mahony_equals_ahrs_mahony_from_the_same_initial_state():
     q0 = Rotation.from_euler("ZYX", [-80.0, 5.0, -3.0], degrees=True).as_quat()
     ref = ahrs.filters.Mahony(gyr=gyro, acc=acc, mag=mag, frequency=fs, k_P=0.74, k_I=0.3,
                               q0=angles.nwu_to_enu(q0)[[3, 0, 1, 2]]).Q   # ahrs: Q[t] from Q[t-1], sample t
-    ours = broad_benchmark.reference_mahony(gyro[1:], acc[1:], mag[1:], fs, k_P=0.74, k_I=0.3, q0=q0)
+    ours = broad_reference.reference_mahony(gyro[1:], acc[1:], mag[1:], fs, k_P=0.74, k_I=0.3, q0=q0)
     assert rot_angle(angles.nwu_to_enu(ours), ref[1:, [1, 2, 3, 0]]).max() < 1e-10
 
 
@@ -483,7 +484,7 @@ def test_madgwick_without_mag_equals_ahrs_madgwick_imu():
     gyro, acc, _ = _smooth_inputs(n, fs, 14)
     q0 = Rotation.from_euler("ZYX", [10.0, 20.0, -30.0], degrees=True).as_quat()
     ref = ahrs.filters.Madgwick(gyr=gyro, acc=acc, frequency=fs, gain=0.12, q0=q0[[3, 0, 1, 2]]).Q
-    ours = broad_benchmark.reference_madgwick(gyro[1:], acc[1:], None, fs, beta=0.12, q0=q0)
+    ours = broad_reference.reference_madgwick(gyro[1:], acc[1:], None, fs, beta=0.12, q0=q0)
     assert rot_angle(ours, ref[1:, [1, 2, 3, 0]]).max() < 1e-10
 
 
@@ -503,7 +504,7 @@ def test_madgwick_step_is_a_normalised_gradient_step_with_the_half_size_field(se
     q = Rotation.random(random_state=seed).as_quat()
     a, m = rng.normal(size=3) + [0, 0, 3], rng.normal(size=3) * 10 + [20, 0, -40]
     fs, beta = 50.0, 0.3
-    out = broad_benchmark.reference_madgwick(np.zeros((1, 3)), a[None], m[None], fs, beta=beta, q0=q)[0]
+    out = broad_reference.reference_madgwick(np.zeros((1, 3)), a[None], m[None], fs, beta=beta, q0=q)[0]
     an, mn = a / np.linalg.norm(a), m / np.linalg.norm(m)
     h = Rotation.from_quat(q).apply(mn)
 
@@ -529,7 +530,7 @@ def test_filters_converge_to_a_static_pose_in_nwu(name):
     rec = Recording("static", "test", fs, np.zeros((n, 3)), acc, mag, np.tile(truth.as_quat(), (n, 1)),
                     meta={"movement": np.r_[np.zeros(n - 500), np.ones(500)].astype(bool),
                           "gt_valid": np.ones(n, bool)})
-    q = broad_benchmark.run_benchmark_filter(name, rec, q0=start)
+    q = broad_reference.run_benchmark_filter(name, rec, q0=start)
     # Madgwick's normalised gradient step keeps it chattering within ~beta/fs rad of the optimum
     assert rot_angle(q[-1:], truth.as_quat()[None])[0] < 0.2 * DEG
     assert broad_benchmark.evaluate(rec, q).total_rmse_deg < 0.2
@@ -539,10 +540,10 @@ def test_run_benchmark_filter_errors():
     rec = Recording("x", "test", 100.0, np.zeros((5, 3)), np.tile([0, 0, 1.0], (5, 1)),
                     np.tile([1.0, 0, -1], (5, 1)), np.tile([0, 0, 0, 1.0], (5, 1)))
     with pytest.raises(ValueError, match="unknown benchmark filter 'vqf'"):
-        broad_benchmark.run_benchmark_filter("vqf", rec)
+        broad_reference.run_benchmark_filter("vqf", rec)
     with pytest.raises(ValueError, match="without mag, pass the initial orientation q0"):
-        broad_benchmark.run_benchmark_filter("madgwick", rec, use_mag=False)
-    assert broad_benchmark.run_benchmark_filter("mahony", rec, use_mag=False, q0=[0, 0, 0, 1]).shape == (5, 4)
+        broad_reference.run_benchmark_filter("madgwick", rec, use_mag=False)
+    assert broad_reference.run_benchmark_filter("mahony", rec, use_mag=False, q0=[0, 0, 0, 1]).shape == (5, 4)
 
 
 # --- real data ---------------------------------------------------------------------------------
@@ -568,7 +569,7 @@ def test_real_trials_load_with_the_documented_conventions(broad_data_dir):
 @pytest.mark.realdata
 def test_published_group_figures_are_means_of_the_trial_figures(broad_data_dir, published_dir):
     index = broad.trial_index(broad_data_dir)
-    for name, params in broad_benchmark.PUBLISHED_PARAMS.items():
+    for name, params in broad_reference.PUBLISHED_PARAMS.items():
         pub = broad_benchmark.published(name, published_dir)
         assert pub.params == params and len(pub.trials) == 39
         for metric in broad_benchmark.METRICS:
@@ -589,12 +590,12 @@ def test_benchmark_filters_reproduce_the_published_figures(broad_data_dir, publi
     differences we know of are far larger: ahrs's full-size magnetic reference moves Madgwick's
     total RMSE by 0.7-44 % per trial, ahrs's initial state moves Mahony's by up to 8.4 %.
     """
-    pubs = {name: broad_benchmark.published(name, published_dir) for name in broad_benchmark.BENCHMARK_FILTERS}
+    pubs = {name: broad_benchmark.published(name, published_dir) for name in broad_reference.BENCHMARK_FILTERS}
     worst = 0.0
     for path in broad.find_trials(broad_data_dir):
         rec = broad.load_trial(path)
         for name, pub in pubs.items():
-            got = broad_benchmark.evaluate(rec, broad_benchmark.run_benchmark_filter(name, rec)).as_dict()
+            got = broad_benchmark.evaluate(rec, broad_reference.run_benchmark_filter(name, rec)).as_dict()
             for metric, value in got.items():
                 want = pub.trials[rec.name][metric]
                 rel = abs(value / want - 1.0)
@@ -609,7 +610,7 @@ def test_ahrs_mahony_reproduces_with_the_benchmark_initial_state(broad_data_dir,
     ahrs = pytest.importorskip("ahrs")
     rec = broad.load_trial(broad.find_trials(broad_data_dir)[0])
     want = broad_benchmark.published("mahony", published_dir).trials[rec.name]["total_rmse_deg"]
-    q0 = broad_benchmark.benchmark_initial_quat(rec.acc[0], rec.mag[0])
+    q0 = broad_reference.benchmark_initial_quat(rec.acc[0], rec.mag[0])
     q = ahrs.filters.Mahony(gyr=rec.gyro, acc=rec.acc, mag=rec.mag, frequency=rec.fs, k_P=0.74, k_I=0.0012,
                             q0=angles.nwu_to_enu(q0)[[3, 0, 1, 2]]).Q[:, [1, 2, 3, 0]]
     assert broad_benchmark.evaluate(rec, angles.enu_to_nwu(q)).total_rmse_deg == pytest.approx(want, rel=1e-3)

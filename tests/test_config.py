@@ -70,7 +70,7 @@ def test_cache_cap_must_be_a_positive_size(monkeypatch, bad):
 
 def test_fast_mode_caps_steps_and_epochs_only():
     from danae_lite.runtime import FAST_EPOCHS, FAST_MAX_STEPS, RunSettings
-    from danae_lite.danae.train import TrainConfig
+    from danae_lite.danae.train_types import TrainConfig
 
     base = TrainConfig(epochs=5)
     full = RunSettings(fast=False).train_config(base)

@@ -8,7 +8,7 @@ from danae_lite.research import crossval
 from danae_lite.data import experiments, simulate
 from danae_lite.evaluate import metrics
 from danae_lite.research.leaderboard import run_leaderboard
-from danae_lite.danae.train import TrainConfig
+from danae_lite.danae.train_types import TrainConfig
 
 
 @pytest.fixture(scope="module")

@@ -11,7 +11,7 @@ from danae_lite.research.danae_res import (GATE_GAINS, DanaeRes, DenoiserStream,
 from danae_lite.research.features import multi_input, run_network, to_circle
 from danae_lite.research.leaderboard import run_leaderboard
 from danae_lite.data.simulate import simulate
-from danae_lite.danae.train import TrainConfig
+from danae_lite.danae.train_types import TrainConfig
 from danae_lite.research.variants import validation_block
 
 

@@ -6,13 +6,14 @@ import pytest
 
 from danae_lite.data.experiments import Experiment
 from danae_lite.data.simulate import simulate
-from danae_lite.danae.train import TrainConfig
+from danae_lite.danae.train_types import TrainConfig
 from danae_lite.research import crossval
 from danae_lite.research.danae_res import filter_error
 from danae_lite.research.danae_safe import (POLICIES, RISK_BINS, DanaeSafe, SafeStream,
                                             alpha_of, calibrate_angle, ema)
 from danae_lite.research.leaderboard import run_leaderboard
-from danae_lite.research.registry import is_method_name, make_method
+from danae_lite.research.baselines import is_method_name
+from danae_lite.research.registry import make_method
 
 # E[log chi^2_1] = psi(1/2) + log 2 = -gamma - log 2 (closed form)
 E_LOG_CHI2_1 = -np.euler_gamma - np.log(2.0)

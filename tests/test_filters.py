@@ -131,7 +131,7 @@ def test_kf_baselines_on_a_static_pose(method):
     # the accelerometer roll formula of the paper is exact only at zero pitch: asin(sin(roll) cos(pitch))
     # and the heading is tilt-compensated with that roll: the KF converges to the measurements
     roll_acc = np.arcsin(np.sin(STATIC[0]) * np.cos(STATIC[1]))
-    from danae_lite.kalman.filter import mag_heading
+    from danae_lite.kalman.model import mag_heading
 
     yaw_mag = float(mag_heading(recs[0].mag[:1], roll_acc, STATIC[1])[0])
     assert abs(yaw_mag - STATIC[2]) > 1e-3  # the measurement itself is biased by the roll formula
@@ -171,7 +171,7 @@ def test_tuned_kf_searches_jointly_and_beats_the_paper_kf_on_training_data():
 
 
 def test_constant_is_the_training_mean_and_the_smoother_smooths_the_tuned_kf():
-    from danae_lite.kalman import filter as kalman
+    from danae_lite.kalman.filter import run_kf
     from danae_lite.kalman import offline
     from danae_lite.data.simulate import simulate
 
@@ -182,7 +182,7 @@ def test_constant_is_the_training_mean_and_the_smoother_smooths_the_tuned_kf():
     np.testing.assert_allclose(const.predict(recs[0])[0][5], [e[:, 0].mean(), e[:, 1].mean(),
                                                               np.angle(np.exp(1j * e[:, 2]).mean())])
     rts = ctx.method("tuned_kf_rts")
-    smooth = offline.rts_smooth(kalman.run_kf(recs[0], ctx.method("tuned_kf").config))
+    smooth = offline.rts_smooth(run_kf(recs[0], ctx.method("tuned_kf").config))
     got = rts.predict(recs[0])[0]
     np.testing.assert_allclose(got[:, :2], smooth[:, [0, 2]], atol=1e-12)
     assert not rts.causal and const.causal and ctx.method("tuned_kf").causal

@@ -15,10 +15,10 @@ import pytest
 import scipy.linalg
 from scipy.spatial.transform import Rotation
 
-from danae_lite.kalman.filter import (AUTHORS_DT, KFConfig, accel_tilt, euler_rates,
-                                      gain_sequence, kalman_filter, kf_step,
-                                      mag_heading, run_kf, steady_state,
-                                      system_matrices)
+from danae_lite.kalman.filter import kalman_filter, kf_step, run_kf
+from danae_lite.kalman.gains import gain_sequence, steady_state
+from danae_lite.kalman.model import (AUTHORS_DT, KFConfig, accel_tilt, euler_rates,
+                                     mag_heading, system_matrices)
 from danae_lite.data.recording import Recording
 
 from conftest import assert_close_scaled

@@ -15,8 +15,9 @@ import pytest
 import scipy.linalg
 from scipy import stats
 
-from danae_lite.kalman.filter import (KFConfig, KFResult, gain_sequence, run_kf,
-                                      system_matrices)
+from danae_lite.kalman.filter import KFResult, run_kf
+from danae_lite.kalman.gains import gain_sequence
+from danae_lite.kalman.model import KFConfig, system_matrices
 from danae_lite.kalman.offline import Innovations, innovations
 from danae_lite.data.simulate import simulate
 

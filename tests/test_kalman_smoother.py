@@ -6,20 +6,21 @@ import numpy as np
 import pytest
 import scipy.linalg
 
-from danae_lite.kalman import filter as kalman
+from danae_lite.kalman.filter import KFResult, run_kf
+from danae_lite.kalman.model import KFConfig, system_matrices
 from danae_lite.kalman import offline
 from danae_lite.angles import wrap
 from danae_lite.data.simulate import simulate
 
 
-def batch_smoother(res: kalman.KFResult) -> np.ndarray:
+def batch_smoother(res: KFResult) -> np.ndarray:
     """Posterior mean of all states given all measurements, by solving the normal equations.
 
     States z = [x_-1, x_0, ..., x_{N-1}] (6 each): x_-1 ~ N(x0, P0);
     x_t = A x_{t-1} + B u_t + w_t, w ~ N(0, Q); y_t = C x_t + v_t, v ~ N(0, R).
     """
     cfg, dt = res.config, res.dt
-    A, B, C = kalman.system_matrices(dt)
+    A, B, C = system_matrices(dt)
     n = len(res.euler)
     dim = 6 * (n + 1)
     H = np.zeros((dim, dim))
@@ -43,8 +44,8 @@ def batch_smoother(res: kalman.KFResult) -> np.ndarray:
 @pytest.mark.parametrize("q", [1.0, 1e-3])
 def test_rts_matches_the_batch_least_squares_solution(q):
     rec = simulate("handheld", duration=0.6, seed=3).slice(0, 40)
-    cfg = kalman.KFConfig(Q=[q, q * 1e-2] * 3, R=[0.5, 0.5, 2.0], init_from_truth=False)
-    res = kalman.run_kf(rec, cfg)
+    cfg = KFConfig(Q=[q, q * 1e-2] * 3, R=[0.5, 0.5, 2.0], init_from_truth=False)
+    res = run_kf(rec, cfg)
     smooth = offline.rts_smooth(res)
     ref = batch_smoother(res)
     scale = np.abs(ref).max()
@@ -56,7 +57,7 @@ def test_rts_matches_the_batch_least_squares_solution(q):
 
 def test_rts_beats_the_filter_on_a_long_recording():
     rec = simulate("handheld", duration=60.0, seed=1)
-    res = kalman.run_kf(rec, kalman.KFConfig(Q=[1e-5, 1e-10] * 3))
+    res = run_kf(rec, KFConfig(Q=[1e-5, 1e-10] * 3))
     smooth = offline.rts_smooth(res)
     err_f = np.sqrt(np.mean(wrap(res.euler[:, :2] - rec.euler[:, :2]) ** 2))
     err_s = np.sqrt(np.mean(wrap(smooth[:, [0, 2]] - rec.euler[:, :2]) ** 2))
@@ -67,12 +68,12 @@ def test_wrapped_yaw_innovation_removes_the_2pi_transients():
     rec = simulate("handheld", duration=120.0, seed=0)
     truth_yaw = rec.euler[:, 2]
     assert np.abs(np.diff(truth_yaw)).max() > np.pi  # the heading crosses +-pi
-    plain = kalman.run_kf(rec, kalman.KFConfig(Q=[1e-5, 1e-10] * 3))
-    wrapped = kalman.run_kf(rec, kalman.KFConfig(Q=[1e-5, 1e-10] * 3, wrap_yaw_innovation=True))
+    plain = run_kf(rec, KFConfig(Q=[1e-5, 1e-10] * 3))
+    wrapped = run_kf(rec, KFConfig(Q=[1e-5, 1e-10] * 3, wrap_yaw_innovation=True))
     rmse = lambda e: float(np.sqrt(np.mean(wrap(e[:, 2] - truth_yaw) ** 2)))  # noqa: E731
     assert rmse(wrapped.euler) < 0.5 * rmse(plain.euler)
     np.testing.assert_array_equal(wrapped.euler[:, :2], plain.euler[:, :2])  # roll/pitch untouched
     # both implementations agree
-    general = kalman.run_kf(rec, kalman.KFConfig(Q=[1e-5, 1e-10] * 3, wrap_yaw_innovation=True), method="general")
+    general = run_kf(rec, KFConfig(Q=[1e-5, 1e-10] * 3, wrap_yaw_innovation=True), method="general")
     np.testing.assert_allclose(general.euler, wrapped.euler, atol=1e-9)
     assert "wrap_yaw_innovation=True" in repr(wrapped.config) and "wrap" not in repr(plain.config)

@@ -14,7 +14,8 @@ import pytest
 
 from danae_lite.research import baselines, methods
 from danae_lite.kalman import grid
-from danae_lite.kalman import filter as kalman
+from danae_lite.kalman.filter import run_kf
+from danae_lite.kalman.model import KFConfig
 from danae_lite.data.alignment import FrameAlignment
 from danae_lite.data.simulate import simulate
 
@@ -33,9 +34,9 @@ def _grid():
 
 @pytest.mark.parametrize("make", [
     _grid,
-    lambda: [kalman.KFConfig(), kalman.KFConfig(Q=[1e-3, 0, 1e-3, 0, 1e-3, 0], x0=[0.1, 0, -0.2, 0, 1.0, 0.01])],
-    lambda: [kalman.KFConfig.authors(), kalman.KFConfig.authors(Q=[1e-2] * 6)],
-    lambda: [kalman.KFConfig(init_from_truth=True, wrap_yaw_innovation=True, P0=[5.0, 1e-3] * 3)],
+    lambda: [KFConfig(), KFConfig(Q=[1e-3, 0, 1e-3, 0, 1e-3, 0], x0=[0.1, 0, -0.2, 0, 1.0, 0.01])],
+    lambda: [KFConfig.authors(), KFConfig.authors(Q=[1e-2] * 6)],
+    lambda: [KFConfig(init_from_truth=True, wrap_yaw_innovation=True, P0=[5.0, 1e-3] * 3)],
 ], ids=["tuned-grid", "x0-and-Q", "authors-dt", "from-truth"])
 def test_grid_equals_one_setting_at_a_time(recs, make):
     configs = make()
@@ -43,18 +44,18 @@ def test_grid_equals_one_setting_at_a_time(recs, make):
     got = grid.run_kf_grid(rec, configs)
     assert got.shape == (len(configs), len(rec), 3)
     for k, cfg in enumerate(configs):
-        np.testing.assert_allclose(got[k], kalman.run_kf(rec, cfg).euler, rtol=0, atol=ATOL)
+        np.testing.assert_allclose(got[k], run_kf(rec, cfg).euler, rtol=0, atol=ATOL)
 
 
 def test_grid_rejects_settings_it_cannot_share(recs):
     with pytest.raises(ValueError, match="empty"):
         grid.run_kf_grid(recs[0], [])
     with pytest.raises(ValueError, match=r"configs\[1\]\.wrap_yaw_innovation"):
-        grid.run_kf_grid(recs[0], [kalman.KFConfig(), kalman.KFConfig(wrap_yaw_innovation=True)])
+        grid.run_kf_grid(recs[0], [KFConfig(), KFConfig(wrap_yaw_innovation=True)])
     full = np.eye(6)
     full[0, 2] = full[2, 0] = 0.1
     with pytest.raises(ValueError, match=r"configs\[0\] is not block-diagonal"):
-        grid.run_kf_grid(recs[0], [kalman.KFConfig(Q=full)])
+        grid.run_kf_grid(recs[0], [KFConfig(Q=full)])
 
 
 def test_scores_are_the_objectives_of_each_setting(recs):
@@ -67,7 +68,7 @@ def test_scores_are_the_objectives_of_each_setting(recs):
     for k, cfg in enumerate(configs):
         est = {}
         for r in recs:
-            e = kalman.run_kf(r, cfg).euler.copy()
+            e = run_kf(r, cfg).euler.copy()
             e[:, 2] += north
             est[r.name] = align.to_truth_frame(e)
         # SciPy's rotations and the package's RMSE of wrapped errors, one setting at a time

@@ -13,7 +13,7 @@ from danae_lite.research.baselines import METHODS
 from danae_lite.data.experiments import Experiment
 from danae_lite.research.leaderboard import CSV_COLUMNS, run_leaderboard
 from danae_lite.data.simulate import simulate
-from danae_lite.danae.train import TrainConfig
+from danae_lite.danae.train_types import TrainConfig
 
 
 @pytest.fixture(scope="module")

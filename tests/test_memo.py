@@ -4,7 +4,8 @@ import os
 import numpy as np
 import pytest
 
-from danae_lite.danae.train import TrainConfig, train
+from danae_lite.danae.train import train
+from danae_lite.danae.train_types import TrainConfig
 from danae_lite.research import features, memo
 from danae_lite.research.memo import RunMemo, RunStore, digest
 

@@ -10,7 +10,7 @@ from danae_lite.danae import networks
 from danae_lite.paper import pipeline
 from danae_lite.data import simulate
 from danae_lite.danae.predict import predict
-from danae_lite.danae.train import TrainConfig
+from danae_lite.danae.train_types import TrainConfig
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,7 @@ import numpy as np
 import pytest
 import torch
 
-from danae_lite.kalman import filter as kalman
+from danae_lite.kalman.filter import run_kf
 from danae_lite.evaluate import metrics
 from danae_lite.paper import pipeline
 from danae_lite.data import simulate
@@ -14,7 +14,7 @@ from danae_lite.research.baselines import Danae, PaperKF
 from danae_lite.data.experiments import Experiment
 from danae_lite.research.leaderboard import run_leaderboard
 from danae_lite.data.recording import DataError
-from danae_lite.danae.train import TrainConfig
+from danae_lite.danae.train_types import TrainConfig
 
 
 @pytest.fixture(scope="module")
@@ -25,7 +25,7 @@ def recs():
 def test_filter_all_matches_run_kf(recs):
     est = pipeline.filter_all(recs)
     assert set(est) == {r.name for r in recs}
-    np.testing.assert_array_equal(est[recs[0].name], kalman.run_kf(recs[0]).euler)
+    np.testing.assert_array_equal(est[recs[0].name], run_kf(recs[0]).euler)
 
 
 def test_seed_study_tables(recs):

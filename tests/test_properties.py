@@ -21,7 +21,9 @@ from scipy.spatial.transform import Rotation
 from conftest import synthetic_oxiod, ucs_signals, write_rows, write_ucs
 from danae_lite.data import oxiod, ucs
 from danae_lite.angles import angle_diff, euler_to_quat, quat_to_euler, wrap
-from danae_lite.kalman.filter import KFConfig, gain_sequence, kalman_filter
+from danae_lite.kalman.filter import kalman_filter
+from danae_lite.kalman.gains import gain_sequence
+from danae_lite.kalman.model import KFConfig
 from danae_lite.data.recording import DataError
 from danae_lite.danae.windows import (sliding_windows, stitch_overlap_average,
                                       stitch_tiles, tile_windows)

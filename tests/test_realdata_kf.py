@@ -6,7 +6,8 @@ the check is "in the paper's range" (Table 1 KF: roll 0.0815, pitch 0.0600 rad),
 """
 import pytest
 
-from danae_lite.kalman import filter as kalman
+from danae_lite.kalman.filter import run_kf
+from danae_lite.kalman.model import KFConfig
 from danae_lite.evaluate import metrics
 from danae_lite.data import oxiod
 
@@ -18,9 +19,9 @@ def imu2(oxiod_dir):
     return oxiod.load_recording(oxiod_dir / "handheld" / "data1" / "syn" / "imu2.csv")
 
 
-@pytest.mark.parametrize("config", [kalman.KFConfig(), kalman.KFConfig.authors()], ids=["dt=1/fs", "dt=0.1"])
+@pytest.mark.parametrize("config", [KFConfig(), KFConfig.authors()], ids=["dt=1/fs", "dt=0.1"])
 def test_kf_roll_pitch_rmse_in_paper_range(imu2, config):
-    res = kalman.run_kf(imu2, config)
+    res = run_kf(imu2, config)
     table = metrics.metric_table(res.euler, imu2.euler)
     roll, pitch = table.loc["rmse", "roll"], table.loc["rmse", "pitch"]
     print(f"\nKF on imu2 ({'dt=%.2f' % res.dt}): roll RMSE {roll:.4f} rad, pitch RMSE {pitch:.4f} rad "

@@ -8,7 +8,9 @@ from danae_lite.danae.model import (ARCHITECTURES, DanaeCausal, DanaePaper, buil
 from danae_lite.research.streaming import (StreamingDanae, measure_latency,
                                            predict_causal)
 from danae_lite.danae.checkpoints import load_result
-from danae_lite.danae.train import TrainConfig, TrainResult, load, save, train
+from danae_lite.danae.checkpoints import load, save
+from danae_lite.danae.train import train
+from danae_lite.danae.train_types import TrainConfig, TrainResult
 
 NOISE = 0.05  # rad
 

@@ -16,7 +16,8 @@ import torch
 from danae_lite.danae import model
 from danae_lite.paper import pipeline
 from danae_lite.data import simulate
-from danae_lite.danae.train import TrainConfig, train
+from danae_lite.danae.train import train
+from danae_lite.danae.train_types import TrainConfig
 
 NOTEBOOK = Path(__file__).resolve().parents[1] / "notebooks" / "03_danae.ipynb"
 MODULE_TAG, LOOP_TAG = "textbook-danae-module", "textbook-danae-loop"

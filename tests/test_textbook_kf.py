@@ -13,7 +13,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from danae_lite.kalman import filter as kalman
+from danae_lite.kalman.filter import kf_step, run_kf
+from danae_lite.kalman.model import (KFConfig, accel_tilt, euler_rates, mag_heading,
+                                     system_matrices)
 from danae_lite.data.simulate import simulate
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -61,25 +63,25 @@ def random_mismatch(fn, n_trials: int = 25, seed: int = 20201) -> float:
         x, u, y = rng.normal(size=n), rng.normal(size=m), rng.normal(size=k)
         A, B, C = rng.normal(size=(n, n)), rng.normal(size=(n, m)), rng.normal(size=(k, n))
         P, Q, R = spd(rng, n), spd(rng, n), spd(rng, k)
-        ref = kalman.kf_step(x, P, u, y, A, B, C, Q, R)
+        ref = kf_step(x, P, u, y, A, B, C, Q, R)
         x1, P1, K1 = fn(x, P, u, y, A, B, C, Q, R)
         assert np.shape(x1) == (n,) and np.shape(P1) == (n, n) and np.shape(K1) == (n, k)
         worst = max(worst, rel_diff(x1, ref.x), rel_diff(P1, ref.P), rel_diff(K1, ref.K))
     return worst
 
 
-def run_by_hand(fn, rec, config: kalman.KFConfig):
+def run_by_hand(fn, rec, config: KFConfig):
     """``fn`` over a recording exactly as ``run_kf`` feeds its equations: input and heading at
     the previous roll/pitch estimates (the truth at step 0, ``init_from_truth``)."""
-    A, B, C = kalman.system_matrices(config.dt or rec.dt)
+    A, B, C = system_matrices(config.dt or rec.dt)
     x, P = config.x0.copy(), config.P0.copy()
     roll, pitch = rec.euler[0, :2] if config.init_from_truth else x[[0, 2]]
-    tilt = kalman.accel_tilt(rec.acc)
+    tilt = accel_tilt(rec.acc)
     states = np.empty((len(rec), 6))
     K = None
     for t in range(len(rec)):
-        u = kalman.euler_rates(rec.gyro[t], roll, pitch)[0]
-        y = np.array([tilt[t, 0], tilt[t, 1], kalman.mag_heading(rec.mag[t], roll, pitch)[0]])
+        u = euler_rates(rec.gyro[t], roll, pitch)[0]
+        y = np.array([tilt[t, 0], tilt[t, 1], mag_heading(rec.mag[t], roll, pitch)[0]])
         x, P, K = fn(x, P, u, y, A, B, C, config.Q, config.R)
         states[t] = x
         roll, pitch = x[0], x[2]
@@ -92,8 +94,8 @@ def recording():
 
 
 def run_mismatch(fn, rec, config=None) -> float:
-    config = config or kalman.KFConfig()
-    ref = kalman.run_kf(rec, config)
+    config = config or KFConfig()
+    ref = run_kf(rec, config)
     states, P, K = run_by_hand(fn, rec, config)
     return max(rel_diff(states, ref.state), rel_diff(P, ref.P), rel_diff(K, ref.gain))
 
@@ -116,7 +118,7 @@ def test_step_over_a_simulated_recording_equals_run_kf(step, recording):
 
 
 def test_step_equals_run_kf_with_other_covariances_and_the_authors_dt(step, recording):
-    config = kalman.KFConfig.authors(Q=np.diag([1e-3, 1e-4] * 3), R=np.diag([0.05, 0.05, 0.2]))
+    config = KFConfig.authors(Q=np.diag([1e-3, 1e-4] * 3), R=np.diag([0.05, 0.05, 0.2]))
     assert run_mismatch(step, recording, config) <= RTOL
 
 

@@ -10,7 +10,9 @@ from danae_lite.danae.seeding import default_device
 from danae_lite.danae.model import DanaeBig, DanaePaper
 from danae_lite.danae.checkpoints import CheckpointError
 from danae_lite.danae.predict import predict
-from danae_lite.danae.train import TrainConfig, TrainResult, load, save, train
+from danae_lite.danae.checkpoints import load, save
+from danae_lite.danae.train import train
+from danae_lite.danae.train_types import TrainConfig, TrainResult
 
 NOISE = 0.05  # rad
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from danae_lite.kalman import filter as kalman
+from danae_lite.kalman.model import accel_tilt, euler_rates, mag_heading
 from danae_lite.data.experiments import Experiment
 from danae_lite.research.features import (MULTI_CHANNELS, from_circle, multi_input,
                                           to_circle)
@@ -12,7 +12,7 @@ from danae_lite.research.leaderboard import run_leaderboard
 from danae_lite.research.methods import total_error_rmse
 from danae_lite.data.simulate import simulate
 from danae_lite.research.streaming import predict_causal
-from danae_lite.danae.train import TrainConfig
+from danae_lite.danae.train_types import TrainConfig
 from danae_lite.research.variants import DanaeOn, Selected, validation_block
 
 
@@ -31,10 +31,10 @@ def test_multi_input_channels_by_hand():
     est = rec.euler + 0.01
     x = multi_input(rec, est, north_yaw=0.25)
     assert x.shape == (len(rec), len(MULTI_CHANNELS))
-    np.testing.assert_allclose(x[:, 4:6], kalman.accel_tilt(rec.acc))
-    heading = kalman.mag_heading(rec.mag, est[:, 0], est[:, 1]) + 0.25
+    np.testing.assert_allclose(x[:, 4:6], accel_tilt(rec.acc))
+    heading = mag_heading(rec.mag, est[:, 0], est[:, 1]) + 0.25
     np.testing.assert_allclose(x[:, 6:8], np.c_[np.sin(heading), np.cos(heading)])
-    np.testing.assert_allclose(x[:, 8:], kalman.euler_rates(rec.gyro, est[:, 0], est[:, 1]))
+    np.testing.assert_allclose(x[:, 8:], euler_rates(rec.gyro, est[:, 0], est[:, 1]))
 
 
 @pytest.fixture(scope="module")

@@ -39,7 +39,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from .checkpoints import CheckpointError, load_result, save
-from .train import TrainConfig, TrainResult, train
+from .train import train
+from .train_types import TrainConfig, TrainResult
 
 Array = NDArray[np.float64]
 R = TypeVar("R")

@@ -29,7 +29,7 @@ from torch import nn
 
 from .gemm_conv import ChannelsLastConv1d, ChannelsLastConvTranspose1d
 from .model import DanaeBase
-from .train import TorchSettings, _default_threads, as_2d
+from .train import TorchSettings, as_2d
 from .train_types import TrainResult, network_of
 from .windows import overlap_starts, stitch_overlap_average, stitch_tiles, tile_windows
 
@@ -119,7 +119,7 @@ def predict(
     plain.eval()
     p = next(plain.parameters())
     preds = []
-    with TorchSettings(num_threads or _default_threads()), torch.inference_mode():
+    with TorchSettings(num_threads or max(1, torch.get_num_threads())), torch.inference_mode():
         for i in range(0, len(starts), batch_size):  # (batch, C_in, L), cut batch by batch
             chunk = torch.from_numpy(x[starts[i : i + batch_size, None] + np.arange(window)].transpose(0, 2, 1).copy())
             preds.append(plain(chunk.to(device=p.device, dtype=p.dtype)).transpose(1, 2).cpu().numpy())

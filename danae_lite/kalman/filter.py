@@ -1,9 +1,7 @@
 r"""The paper's linear attitude Kalman filter, exactly as the authors built it.
 
 The model, its settings and measurement formulas are in :mod:`danae_lite.kalman.model`, the
-gain sequence and steady state in :mod:`danae_lite.kalman.gains`; this module runs the filter
-(and exports their names, so that ``from danae_lite.kalman.filter import KFConfig, run_kf`` is all a
-chapter needs).
+gain sequence and steady state in :mod:`danae_lite.kalman.gains`; this module runs the filter.
 
 Recursion (paper eqs 3-7), once per sample ``t = 0 .. N-1`` starting from ``x0``, ``P0``:
 
@@ -44,23 +42,7 @@ from .model import (AUTHORS_DT, KFConfig, accel_tilt, check_dt, euler_rates,
 if TYPE_CHECKING:  # pragma: no cover
     from ..data.recording import Recording
 
-__all__ = [
-    "AUTHORS_DT",
-    "GainSequence",
-    "KFConfig",
-    "KFResult",
-    "KFStep",
-    "SteadyState",
-    "accel_tilt",
-    "euler_rates",
-    "gain_sequence",
-    "kalman_filter",
-    "kf_step",
-    "mag_heading",
-    "run_kf",
-    "steady_state",
-    "system_matrices",
-]
+__all__ = ["PI", "TWO_PI", "KFResult", "KFStep", "initial_tilt", "kalman_filter", "kf_step", "run_kf", "sensor_arrays"]
 
 PI = math.pi
 TWO_PI = 2.0 * math.pi

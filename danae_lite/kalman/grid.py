@@ -19,7 +19,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 from numpy.typing import NDArray
 
-from . import filter as kalman, gains as kf_gains, model
+from . import gains as kf_gains, model
+from .filter import PI, TWO_PI, initial_tilt, run_kf, sensor_arrays
+from .model import KFConfig, accel_tilt
 from ..angles import euler_error_angle, wrap
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -34,7 +36,7 @@ _SCORE_ELEMENTS = 4_000_000
 """Samples x settings scored at once (each temporary array: 32 MB)."""
 
 
-def _block_key(cfg: kalman.KFConfig, a: int, b: int, j: int) -> tuple[float, ...]:
+def _block_key(cfg: KFConfig, a: int, b: int, j: int) -> tuple[float, ...]:
     """(p00, p01, p11, q00, q01, q11, r) of the (angle a, bias b) block measured by ``y_j``."""
     P0, Q, R = cfg.P0, cfg.Q, cfg.R
     return tuple(map(float, (P0[a, a], P0[a, b], P0[b, b], Q[a, a], Q[a, b], Q[b, b], R[j, j])))
@@ -49,7 +51,7 @@ class _Gains:
     (K00, K10, K21, K31, K42, K52 per setting) with one ``take``.
     """
 
-    def __init__(self, configs: Sequence[kalman.KFConfig], dt: float, n: int) -> None:
+    def __init__(self, configs: Sequence[KFConfig], dt: float, n: int) -> None:
         keys: dict[tuple[float, ...], int] = {}
         index = np.empty((6, len(configs)), dtype=np.intp)
         for k, cfg in enumerate(configs):
@@ -70,7 +72,7 @@ class _Gains:
         return self.table[t].take(self.index) if t < self.m else self.steady
 
 
-def _check(configs: Sequence[kalman.KFConfig]) -> tuple[bool, bool]:
+def _check(configs: Sequence[KFConfig]) -> tuple[bool, bool]:
     """(init_from_truth, wrap_yaw_innovation) shared by all ``configs``; ValueError otherwise."""
     if not configs:
         raise ValueError("configs is empty: give at least one KFConfig")
@@ -83,10 +85,10 @@ def _check(configs: Sequence[kalman.KFConfig]) -> tuple[bool, bool]:
     return configs[0].init_from_truth, configs[0].wrap_yaw_innovation
 
 
-def run_kf_grid(rec: "Recording", configs: Sequence[kalman.KFConfig]) -> NDArray[np.float64]:
+def run_kf_grid(rec: "Recording", configs: Sequence[KFConfig]) -> NDArray[np.float64]:
     """Euler estimates ``(K, N, 3)`` [rad] of the KF on ``rec`` for each of ``K`` settings.
 
-    ``euler[k]`` equals ``kalman.run_kf(rec, configs[k]).euler`` to the rounding of the
+    ``euler[k]`` equals ``run_kf(rec, configs[k]).euler`` to the rounding of the
     trigonometric functions (yaw unbounded, as there). Every setting must be block-diagonal
     and share ``dt``, ``init_from_truth`` and ``wrap_yaw_innovation``; ``dt`` is
     ``config.dt`` or ``1 / rec.fs``. Memory: 24 bytes per sample and setting.
@@ -95,10 +97,10 @@ def run_kf_grid(rec: "Recording", configs: Sequence[kalman.KFConfig]) -> NDArray
     dt = configs[0].dt if configs[0].dt is not None else rec.dt
     model.check_dt(dt)
     dt = float(dt)
-    arrays = kalman.sensor_arrays(gyro=rec.gyro, acc=rec.acc, mag=rec.mag)
+    arrays = sensor_arrays(gyro=rec.gyro, acc=rec.acc, mag=rec.mag)
     n, k = len(arrays["gyro"]), len(configs)
     gains = _Gains(configs, dt, n)
-    tilt = kalman.accel_tilt(arrays["acc"])
+    tilt = accel_tilt(arrays["acc"])
     mu = model.unit_rows(arrays["mag"], "mag")
     g = arrays["gyro"]
     rows = zip(*(c.tolist() for c in (g[:, 0], g[:, 1], g[:, 2], tilt[:, 0], tilt[:, 1], mu[:, 0], mu[:, 1],
@@ -106,7 +108,7 @@ def run_kf_grid(rec: "Recording", configs: Sequence[kalman.KFConfig]) -> NDArray
     x0 = np.array([cfg.x0 for cfg in configs], dtype=float).T  # (6, K)
     f, bf, h, bh, s, bs = (x0[i].copy() for i in range(6))
     if from_truth:  # the step-0 rate and heading formulas use the true roll/pitch (as run_kf)
-        pf, ph = (np.full(k, v) for v in kalman.initial_tilt(rec.euler[0], configs[0]))
+        pf, ph = (np.full(k, v) for v in initial_tilt(rec.euler[0], configs[0]))
     else:
         pf, ph = x0[0].copy(), x0[2].copy()
     euler = np.empty((n, 3, k))
@@ -130,7 +132,7 @@ def run_kf_grid(rec: "Recording", configs: Sequence[kalman.KFConfig]) -> NDArray
         s = s - dt * bs + dt * u2
         e = ym - s
         if wrap_yaw:
-            e = np.remainder(e + kalman.PI, kalman.TWO_PI) - kalman.PI
+            e = np.remainder(e + PI, TWO_PI) - PI
         s = s + ks0 * e
         bs = bs + ks1 * e
         pf, ph = f, h
@@ -169,7 +171,7 @@ def _score(euler: NDArray[np.float64], rec: "Recording", ok: NDArray[np.bool_], 
     return tot, ang
 
 
-def score_kf_grid(configs: Sequence[kalman.KFConfig], recordings: Sequence["Recording"],
+def score_kf_grid(configs: Sequence[KFConfig], recordings: Sequence["Recording"],
                   clean: dict[str, NDArray[np.bool_]], north_yaw: float = 0.0,
                   max_bytes: int = MAX_GRID_BYTES) -> GridScores:
     """Run every setting over ``recordings`` and score it on their clean samples.

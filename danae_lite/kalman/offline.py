@@ -15,7 +15,9 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from .filter import PI, TWO_PI, KFResult, gain_sequence, system_matrices
+from .filter import PI, TWO_PI, KFResult
+from .gains import gain_sequence
+from .model import system_matrices
 
 __all__ = ["Innovations", "innovations", "rts_smooth"]
 

@@ -25,7 +25,7 @@ from numpy.typing import NDArray
 from ..angles import ANGLES, wrap
 from ..danae.networks import NetworkJob, network_jobs, train_networks
 from ..danae.predict import predict
-from ..danae.train import TrainConfig, TrainResult
+from ..danae.train_types import TrainConfig, TrainResult
 
 Array = NDArray[np.float64]
 

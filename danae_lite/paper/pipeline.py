@@ -31,7 +31,8 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from . import figures
-from ..kalman import filter as kalman
+from ..kalman.filter import run_kf
+from ..kalman.model import KFConfig
 from ..evaluate import metrics
 from .. import plots
 from ..angles import ANGLES, wrap
@@ -41,16 +42,17 @@ from ..data.groundtruth import clean_mask
 from .danae import PaperDanae
 from ..data.recording import DataError, Recording
 from ..evaluate.scoring import SUBSETS, plain, score_rows, seed_metrics
-from ..danae.train import TrainConfig, TrainResult, validation_tail
+from ..danae.train import validation_tail
+from ..danae.train_types import TrainConfig, TrainResult
 
 CSV_COLUMNS: tuple[str, ...] = ("method", "angle", "mean_dev", "max_dev", "rmse", "rmse_std",
                                 "paper_mean_dev", "paper_max_dev", "paper_rmse")
 """Columns of :meth:`Reproduction.metrics_frame` (``metrics.csv``); metrics in rad."""
 
 
-def filter_all(recordings: Iterable[Recording], config: kalman.KFConfig | None = None) -> dict[str, NDArray[np.float64]]:
+def filter_all(recordings: Iterable[Recording], config: KFConfig | None = None) -> dict[str, NDArray[np.float64]]:
     """Run the paper's KF on every recording; return ``{name: euler (N, 3) [rad]}``."""
-    return {r.name: kalman.run_kf(r, config).euler for r in recordings}
+    return {r.name: run_kf(r, config).euler for r in recordings}
 
 
 @dataclass
@@ -263,7 +265,7 @@ class Reproduction:
     ``total`` (the whole :func:`reproduce` call)."""
     config: TrainConfig
     """Training settings shared by every network (the seed is replaced per network)."""
-    kf_config: kalman.KFConfig
+    kf_config: KFConfig
     """Filter settings."""
     scores: Scores
     """The metrics on all and on clean test samples, the clean masks and the test predictions."""
@@ -428,7 +430,7 @@ def reproduce(
     angles: Sequence[str],
     seeds: Sequence[int],
     config: TrainConfig,
-    kf_config: kalman.KFConfig | None = None,
+    kf_config: KFConfig | None = None,
     progress: bool = True,
     cache: str | os.PathLike[str] | None = None,
     jobs: int = 1,
@@ -467,7 +469,7 @@ def reproduce(
     say = log or (lambda _line: None)
     angles, seeds = _checked(exp, angles, seeds)
     check_lengths(exp, config)
-    kf_config = kf_config or kalman.KFConfig()
+    kf_config = kf_config or KFConfig()
     estimates = filter_all([*exp.train, *exp.test], kf_config)
     t_kf = time.perf_counter() - t_start
     say(f"KF on {len(estimates)} recordings: {t_kf:.2f} s")

@@ -69,7 +69,8 @@ from scipy.ndimage import uniform_filter1d
 from .ahrs import filters
 from ..kalman import grid as kf_grid, offline
 from . import methods
-from ..kalman import filter as kalman
+from ..kalman.filter import run_kf
+from ..kalman.model import KFConfig
 from ..angles import ANGLES, wrap
 from .features import research_config
 from .memo import RunMemo, digest
@@ -139,9 +140,9 @@ class PaperKF(Method):
     description = "the paper's KF, P0 = Q = I, R = I, dt = 1/fs"
     causal = True
 
-    def __init__(self, config: kalman.KFConfig | None = None) -> None:
+    def __init__(self, config: KFConfig | None = None) -> None:
         super().__init__()
-        self.config = config or kalman.KFConfig()
+        self.config = config or KFConfig()
 
     def fit(self, ctx: Context) -> "PaperKF":
         self.ctx = ctx
@@ -150,7 +151,7 @@ class PaperKF(Method):
 
     def raw(self, rec: Recording) -> Array:
         """KF estimate in the ground-truth frame, yaw NOT wrapped (continuous along the recording)."""
-        e = kalman.run_kf(rec, self.config).euler.copy()
+        e = run_kf(rec, self.config).euler.copy()
         e[:, 2] = e[:, 2] + self.ctx.alignment.north_yaw
         return e
 
@@ -171,8 +172,8 @@ class TunedKF(PaperKF):
     description = "the paper's KF with a wrapped yaw innovation and Q searched jointly on the training recordings (R = I)"
 
     @staticmethod
-    def _config(q_tilt: float, q_bias: float, q_yaw: float) -> kalman.KFConfig:
-        return kalman.KFConfig(Q=[q_tilt, q_bias, q_tilt, q_bias, q_yaw, q_bias], wrap_yaw_innovation=True)
+    def _config(q_tilt: float, q_bias: float, q_yaw: float) -> KFConfig:
+        return KFConfig(Q=[q_tilt, q_bias, q_tilt, q_bias, q_yaw, q_bias], wrap_yaw_innovation=True)
 
     def fit(self, ctx: Context) -> "TunedKF":
         self.ctx = ctx
@@ -215,7 +216,7 @@ class TunedKFSmoother(PaperKF):
         return self
 
     def raw(self, rec: Recording) -> Array:
-        e = offline.rts_smooth(kalman.run_kf(rec, self.config))[:, 0::2].copy()
+        e = offline.rts_smooth(run_kf(rec, self.config))[:, 0::2].copy()
         e[:, 2] = e[:, 2] + self.ctx.alignment.north_yaw
         return e
 

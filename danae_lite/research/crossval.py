@@ -47,9 +47,9 @@ from .memo import carrying_store
 from .methods import Method
 from ..danae.networks import in_processes, pretrain, threads_per_process
 from ..data.recording import Recording
-from .registry import METHODS
+from .baselines import METHODS
 from ..evaluate.scoring import plain, score_rows
-from ..danae.train import TrainConfig
+from ..danae.train_types import TrainConfig
 
 ROW_COLUMNS: tuple[str, ...] = ("split", "protocol", "group", "test", "method", "causal", "samples", "angle",
                                 "mean_dev", "max_dev", "rmse", "rmse_seed_std", "n", "seeds")

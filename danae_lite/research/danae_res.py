@@ -62,7 +62,8 @@ from .methods import Context, Method
 from ..danae.networks import NetworkJob, network_jobs, train_networks
 from ..data.recording import Recording
 from .streaming import StreamingDanae
-from ..danae.train import TrainConfig, TrainResult, validation_tail
+from ..danae.train import validation_tail
+from ..danae.train_types import TrainConfig, TrainResult
 
 Array = NDArray[np.float64]
 
@@ -79,7 +80,7 @@ _LEVEL_CHANNELS = {
 }
 
 
-def _tail(n: int, config: TrainConfig) -> NDArray[np.bool_]:
+def validation_mask(n: int, config: TrainConfig) -> NDArray[np.bool_]:
     """True on the validation tail of an ``n``-sample training recording."""
     m = np.zeros(n, dtype=bool)
     m[n - validation_tail(n, config.window, config.val_fraction) :] = True
@@ -227,7 +228,7 @@ class DanaeRes(Method):
                  rng: np.random.Generator) -> tuple[list[Array], list[Array], list[Array], dict[str, Array]]:
         """Standardised (and level-augmented) inputs, scaled targets, masks and the scaling of ``recs``."""
         # statistics: clean samples outside the validation tails
-        rows = [self.ctx.clean[r.name] & ~_tail(len(r), cfg) for r in recs]
+        rows = [self.ctx.clean[r.name] & ~validation_mask(len(r), cfg) for r in recs]
         xa = np.concatenate([x[r.name][k] for r, k in zip(recs, rows)])
         ya = np.concatenate([y[r.name][k] for r, k in zip(recs, rows)])
         in_mean, in_std = xa.mean(0), np.where(xa.std(0) > 1e-12, xa.std(0), 1.0)
@@ -334,7 +335,7 @@ class DanaeRes(Method):
                 continue
             pairs = ([(nets[(f"without-{k}", seed)], by_name[n], np.ones(len(by_name[n]), bool))
                       for k, held in enumerate(folds) for n in held] if folds else
-                     [(nets[("joint", seed)], r, _tail(len(r), cfg)) for r in self.ctx.train])
+                     [(nets[("joint", seed)], r, validation_mask(len(r), cfg)) for r in self.ctx.train])
             val_rmse = self._gate_rmse(pairs, x, est)  # NaN for an angle the filter does not estimate
             gains = (np.array([GATE_GAINS[i] for i in np.nan_to_num(val_rmse, nan=0.0).argmin(0)])
                      if self.gate else np.ones(3))

@@ -43,8 +43,8 @@ from numpy.typing import NDArray
 from scipy.signal import lfilter
 
 from ..data.recording import Recording
-from ..danae.train import TrainResult
-from .danae_res import DanaeRes, DenoiserStream, _tail, filter_error
+from ..danae.train_types import TrainResult
+from .danae_res import DanaeRes, DenoiserStream, filter_error, validation_mask
 from .features import run_network
 from .methods import Context, Method
 
@@ -207,7 +207,7 @@ class DanaeSafe(Method):
             return [(res.gate_results[(k, first)], by_name[n], np.ones(len(by_name[n]), dtype=bool))
                     for k, held in enumerate(folds) for n in held]
         cfg = res.config(first)
-        return [(res.results[first], r, _tail(len(r), cfg)) for r in self.ctx.train]
+        return [(res.results[first], r, validation_mask(len(r), cfg)) for r in self.ctx.train]
 
     def _signals(self, net: TrainResult, rec: Recording) -> tuple[Array, Array, Array]:
         """The filter's estimate [rad], the network's correction [rad] and the risk regressors

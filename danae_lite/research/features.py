@@ -22,13 +22,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from ..kalman import filter as kalman
+from ..kalman.model import accel_tilt, euler_rates, mag_heading
 from ..data.recording import Recording
 from .memo import RunMemo, digest
 from .methods import PREDICT_STRIDE
 from .streaming import predict_causal
 from ..danae.predict import predict
-from ..danae.train import TrainConfig, TrainResult
+from ..danae.train_types import TrainConfig, TrainResult
 
 Array = NDArray[np.float64]
 
@@ -108,9 +108,9 @@ def multi_input(rec: Recording, est: Array, north_yaw: float) -> Array:
     magnetometer is tilt-compensated with the estimate's roll and pitch and turned to the
     ground-truth frame with ``north_yaw`` [rad]; the Euler rates use the same roll and pitch."""
     est = np.asarray(est, dtype=float)
-    tilt = kalman.accel_tilt(rec.acc)
-    heading = kalman.mag_heading(rec.mag, est[:, 0], est[:, 1]) + north_yaw
-    rates = kalman.euler_rates(rec.gyro, est[:, 0], est[:, 1])
+    tilt = accel_tilt(rec.acc)
+    heading = mag_heading(rec.mag, est[:, 0], est[:, 1]) + north_yaw
+    rates = euler_rates(rec.gyro, est[:, 0], est[:, 1])
     return np.column_stack([to_circle(est), tilt, np.sin(heading), np.cos(heading), rates])
 
 

@@ -44,9 +44,10 @@ from ..data.groundtruth import clean_mask, glitch_table
 from ..danae.networks import NetworkJob, pretrain
 from .methods import Context, Method
 from ..data.recording import Recording
-from .registry import METHODS, is_method_name, make_method
+from .baselines import METHODS, is_method_name
+from .registry import make_method
 from ..evaluate.scoring import SUBSETS, plain, score_rows, seed_metrics
-from ..danae.train import TrainConfig
+from ..danae.train_types import TrainConfig
 
 if TYPE_CHECKING:
     import matplotlib.pyplot as plt

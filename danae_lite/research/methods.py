@@ -27,7 +27,7 @@ from ..angles import euler_error_angle
 from ..evaluate.metrics import errors, rmse
 from ..danae.networks import NetworkJob
 from ..data.recording import Recording
-from ..danae.train import TrainConfig
+from ..danae.train_types import TrainConfig
 
 Array = NDArray[np.float64]
 

@@ -12,13 +12,13 @@ to the leaderboard as objects (``run_leaderboard(..., extra=[...])``), not by na
 """
 from __future__ import annotations
 
-from .baselines import METHODS, denoiser_name, is_method_name
+from .baselines import denoiser_name
 from .baselines import make_method as make_baseline
 from .danae_res import DanaeRes
 from .danae_safe import DanaeSafe
 from .methods import Method
 
-__all__ = ["METHODS", "is_method_name", "make_method"]
+__all__ = ["make_method"]
 
 
 def make_method(name: str) -> Method:

@@ -38,7 +38,8 @@ from .methods import Context, Method, total_error_rmse
 from ..evaluate.metrics import reduction_pct
 from ..danae.networks import NetworkJob, network_jobs, train_networks
 from ..data.recording import Recording
-from ..danae.train import TrainConfig, validation_tail
+from ..danae.train import validation_tail
+from ..danae.train_types import TrainConfig
 
 Array = NDArray[np.float64]
 

@@ -81,7 +81,10 @@ def _enu_to_nwu(q_xyzw: Array) -> Array:
     return _unit_rows(r)
 
 
-def _check(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs: float) -> tuple[Array, Array, Array | None]:
+def checked_sensors(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs: float) -> tuple[Array, Array, Array | None]:
+    """``gyro``, ``acc`` and ``mag`` as contiguous float arrays, checked: each ``(N, 3)`` with the
+    gyro's ``N``, finite, at least one sample, and a positive finite rate ``fs`` [Hz]; ValueError
+    naming the array and the row otherwise."""
     g = np.ascontiguousarray(gyro, dtype=float)
     a = np.ascontiguousarray(acc, dtype=float)
     m = None if mag is None else np.ascontiguousarray(mag, dtype=float)
@@ -114,7 +117,7 @@ def fusion(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs: float, *,
     """
     import imufusion
 
-    g, a, m = _check(gyro, acc, mag, fs)
+    g, a, m = checked_sensors(gyro, acc, mag, fs)
     settings = imufusion.AhrsSettings()
     settings.convention = imufusion.CONVENTION_NWU
     settings.gain = float(gain)
@@ -144,7 +147,7 @@ def vqf(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs: float, *, ta
     ``mag``), ``[x, y, z, w]``, body -> NWU."""
     import vqf as _vqf
 
-    g, a, m = _check(gyro, acc, mag, fs)
+    g, a, m = checked_sensors(gyro, acc, mag, fs)
     f = _vqf.VQF(1.0 / fs, tauAcc=float(tauAcc), tauMag=float(tauMag),
                  magDistRejectionEnabled=bool(magDistRejectionEnabled))
     out = f.updateBatch(g, np.ascontiguousarray(a * G), m)
@@ -158,7 +161,7 @@ def madgwick(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs: float, 
     20-40 k samples/s. Returns ``[x, y, z, w]``, body -> NWU."""
     from ahrs.filters import Madgwick
 
-    g, a, m = _check(gyro, acc, mag, fs)
+    g, a, m = checked_sensors(gyro, acc, mag, fs)
     f = Madgwick(gyr=g, acc=a * G, mag=m, frequency=float(fs), gain=float(gain))
     return _wxyz_to_xyzw(f.Q)
 
@@ -170,7 +173,7 @@ def mahony(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs: float, *,
     body -> NWU."""
     from ahrs.filters import Mahony
 
-    g, a, m = _check(gyro, acc, mag, fs)
+    g, a, m = checked_sensors(gyro, acc, mag, fs)
     f = Mahony(gyr=g, acc=a * G, mag=m, frequency=float(fs), k_P=float(k_P), k_I=float(k_I))
     q = _wxyz_to_xyzw(f.Q)
     return _enu_to_nwu(q) if m is not None else q
@@ -194,7 +197,7 @@ def riann(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike | None, fs: float) -> 
     arbitrary."""
     from riann import RIANN
 
-    g, a, _ = _check(gyro, acc, None, fs)
+    g, a, _ = checked_sensors(gyro, acc, None, fs)
     net = RIANN(riann_model_path())
     q = net.predict(np.ascontiguousarray(a * G, dtype=np.float32), np.ascontiguousarray(g, dtype=np.float32), float(fs))
     return _wxyz_to_xyzw(np.asarray(q, dtype=float))
@@ -275,7 +278,7 @@ def run_many(calls: Sequence[tuple[str, ArrayLike, ArrayLike, ArrayLike | None, 
     for name, *_ in calls:
         if name not in FILTERS:
             raise ValueError(f"unknown filter {name!r}; choose one of {', '.join(FILTERS)}")
-    checked = [(name, *_check(g, a, m, fs), float(fs), dict(params)) for name, g, a, m, fs, params in calls]
+    checked = [(name, *checked_sensors(g, a, m, fs), float(fs), dict(params)) for name, g, a, m, fs, params in calls]
     data = [digest(g, a, m) for _, g, a, m, _, _ in checked]
     keys = [(name, fs, tuple(sorted((k, repr(v)) for k, v in params.items())), d)
             for (name, _, _, _, fs, params), d in zip(checked, data)]
