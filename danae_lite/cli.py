@@ -177,6 +177,12 @@ def build_parser() -> argparse.ArgumentParser:
     _add_common(rep, "reproduce")
     rep.add_argument("--save-models", action="store_true",
                      help="also write one checkpoint per angle and seed to OUT/models/. Default: off")
+    _add_leaderboard(sub)
+    return parser
+
+
+def _add_leaderboard(sub: Any) -> None:
+    """The ``leaderboard`` command and its flags, on the subparsers ``sub``."""
     lb = sub.add_parser(
         "leaderboard",
         help="run every baseline, library filter and DANAE on the same split and write one table",
@@ -208,7 +214,6 @@ def build_parser() -> argparse.ArgumentParser:
                          "over recordings), folds_params.csv, folds.json (and folds_broad.csv; no_harm.csv when a "
                          "danae-res[FILTER] runs beside its FILTER; coverage.csv for danae-safe[FILTER]). Not with "
                          "--train/--test or ucs")
-    return parser
 
 
 def _method_name(name: str) -> str:

@@ -93,7 +93,7 @@ def _paper_split(args: argparse.Namespace, name: str, base: Path | None) -> argp
 
 def load_data(args: argparse.Namespace, settings: RunSettings) -> Any:
     """Resolve the experiment's recordings from the arguments; returns a experiments.Experiment."""
-    from .data import experiments, ucs
+    from .data import experiments
 
     name, fast = args.experiment, settings.fast
     base = settings.data_dir  # --data-dir, else $DANAE_DATA (resolved, checked) or None
@@ -114,26 +114,39 @@ def load_data(args: argparse.Namespace, settings: RunSettings) -> Any:
         return _broad_files(args, base, fast)
 
     if name == "ucs":
-        train_p = _ucs_path(args.train, "--train") if args.train else []
-        test_p = _ucs_path(args.test, "--test") if args.test else []
-        single = {p.resolve() for p in train_p + test_p}
-        if len(single) == 1 and (not train_p or not test_p or len(train_p) == len(test_p) == 1):
-            path = train_p[0] if train_p else test_p[0]
-            tr, te = ucs.split_train_test(ucs.load_recording(path), experiments.TRAIN_FRACTION)
-            note = (f"UCS file {path}: first {experiments.TRAIN_FRACTION:.0%} ({len(tr)} samples) train, "
-                    f"last {1 - experiments.TRAIN_FRACTION:.0%} ({len(te)} samples) test.")
-            return experiments.Experiment("ucs", "real", [tr], [te], note)
-        if not train_p or not test_p:
-            flag = "--train" if train_p else "--test"
-            raise UsageError(f"{flag} names {len(train_p or test_p)} UCS files but the other side is missing; "
-                             "give one file (split 80/20) or both --train and --test")
-        train = [ucs.load_recording(p, name=f"ucs/{p.parent.name}/{p.stem}") for p in train_p]
-        test = [ucs.load_recording(p, name=f"ucs/{p.parent.name}/{p.stem}") for p in test_p]
-        train, test = _unique_names(train, test)
-        note = f"UCS files: train {', '.join(map(str, train_p))}; test {', '.join(map(str, test_p))} (each used whole)."
-        return experiments.Experiment("ucs", "real", train, test, note)
+        return _ucs_files(args)
+    return _oxiod_files_experiment(args, base, fast)
 
-    # oxiod with explicit files; a side left out comes from the data directory's defaults
+
+def _ucs_files(args: argparse.Namespace) -> Any:
+    """The UCS experiment of ``--train``/``--test`` files: one file split 80/20, or each side whole."""
+    from .data import experiments, ucs
+
+    train_p = _ucs_path(args.train, "--train") if args.train else []
+    test_p = _ucs_path(args.test, "--test") if args.test else []
+    single = {p.resolve() for p in train_p + test_p}
+    if len(single) == 1 and (not train_p or not test_p or len(train_p) == len(test_p) == 1):
+        path = train_p[0] if train_p else test_p[0]
+        tr, te = ucs.split_train_test(ucs.load_recording(path), experiments.TRAIN_FRACTION)
+        note = (f"UCS file {path}: first {experiments.TRAIN_FRACTION:.0%} ({len(tr)} samples) train, "
+                f"last {1 - experiments.TRAIN_FRACTION:.0%} ({len(te)} samples) test.")
+        return experiments.Experiment("ucs", "real", [tr], [te], note)
+    if not train_p or not test_p:
+        flag = "--train" if train_p else "--test"
+        raise UsageError(f"{flag} names {len(train_p or test_p)} UCS files but the other side is missing; "
+                         "give one file (split 80/20) or both --train and --test")
+    train = [ucs.load_recording(p, name=f"ucs/{p.parent.name}/{p.stem}") for p in train_p]
+    test = [ucs.load_recording(p, name=f"ucs/{p.parent.name}/{p.stem}") for p in test_p]
+    train, test = _unique_names(train, test)
+    note = f"UCS files: train {', '.join(map(str, train_p))}; test {', '.join(map(str, test_p))} (each used whole)."
+    return experiments.Experiment("ucs", "real", train, test, note)
+
+
+def _oxiod_files_experiment(args: argparse.Namespace, base: Path | None, fast: bool) -> Any:
+    """The OxIOD experiment of ``--train``/``--test`` files; a side left out comes from the data
+    directory's default recordings."""
+    from .data import experiments
+
     syn = None
     if args.train is None or args.test is None:
         syn = _default_root(args, base, "oxiod", "recordings").joinpath(*experiments.OXIOD_FOLDER, "syn")

@@ -287,9 +287,9 @@ def _top_level_names(tree: ast.Module) -> tuple[set[str], set[str]]:
 
 
 def borrowed_names(sources: dict[str, tuple[str, bool]], package: Path) -> list[str]:
-    """``where: module.name`` for every import, in ``sources`` (name -> (source, is_package)), of a
-    private name of another module or of a name a module only re-exports (imported there, not
-    defined), and every ``module._name`` read of an imported module of the package."""
+    """``where: module.name`` for every import or ``module.name`` read, in ``sources`` (name ->
+    (source, is_package)), of a private name of another module of the package or of a name that
+    module only re-exports (imports, not defines)."""
     found = modules(package)
     tops = {name: _top_level_names(ast.parse(path.read_text(encoding="utf-8"))) for name, path in found.items()}
     problems = []
@@ -313,27 +313,32 @@ def borrowed_names(sources: dict[str, tuple[str, bool]], package: Path) -> list[
                 if private or alias.name in only_imported:
                     problems.append(f"{where}: {origin}.{alias.name}")
         for node in ast.walk(tree):
-            if (isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name)
-                    and node.value.id in module_aliases and node.attr.startswith("_")
-                    and not node.attr.startswith("__")):
-                problems.append(f"{where}: {module_aliases[node.value.id]}.{node.attr}")
+            if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) \
+                    and node.value.id in module_aliases:
+                origin = module_aliases[node.value.id]
+                private = node.attr.startswith("_") and not node.attr.startswith("__")
+                if private or node.attr in tops[origin][1]:
+                    problems.append(f"{where}: {origin}.{node.attr}")
     return sorted(set(problems))
 
 
 def chapter_sources() -> dict[str, tuple[str, bool]]:
-    """Each chapter's code cells, one source per cell (``stem[cell]``), as the check reads them."""
+    """Each chapter's code cells joined into one source (a module imported in one cell is used in
+    the next), as the check reads them."""
     import json
 
     out = {}
     for nb in sorted((PACKAGE.parent / "notebooks").glob("[0-9][0-9]_*.ipynb")):
-        for i, cell in enumerate(json.loads(nb.read_text(encoding="utf-8"))["cells"]):
+        cells = []
+        for cell in json.loads(nb.read_text(encoding="utf-8"))["cells"]:
             if cell["cell_type"] == "code":
                 src = "".join(cell["source"])
                 try:
                     ast.parse(src)
                 except SyntaxError:  # IPython's %magic and !shell lines
                     src = "\n".join(l for l in src.splitlines() if not l.lstrip().startswith(("%", "!")))
-                out[f"{nb.stem}[{i}]"] = (src, False)
+                cells.append(src)
+        out[nb.stem] = ("\n".join(cells), False)
     return out
 
 
@@ -348,7 +353,8 @@ def test_no_private_or_re_exported_name_is_used_across_modules():
 def test_the_borrowed_name_check_finds_what_it_looks_for(toy_package: Path):
     (toy_package / "kalman" / "model.py").write_text("import math\nK = 1\ndef _hidden():\n    pass\n")
     (toy_package / "kalman" / "filter.py").write_text("from .model import K, _hidden\nfrom . import model\n"
-                                                      "x = model._hidden\n")
+                                                      "x = model._hidden\ny = model.math\n")
     (toy_package / "cli.py").write_text("from danae_lite.kalman.filter import K\nfrom danae_lite.kalman.model import K\n")
     sources = {name: (path.read_text(), path.name == "__init__.py") for name, path in modules(toy_package).items()}
-    assert borrowed_names(sources, toy_package) == ["cli: kalman.filter.K", "kalman.filter: kalman.model._hidden"]
+    assert borrowed_names(sources, toy_package) == ["cli: kalman.filter.K", "kalman.filter: kalman.model._hidden",
+                                                    "kalman.filter: kalman.model.math"]

@@ -137,6 +137,27 @@ def _checked(quat: ArrayLike, fs: float, gyro: ArrayLike | None) -> tuple[np.nda
     return q, g
 
 
+def _frozen_runs(q: NDArray[np.float64], big: NDArray[np.bool_], bad: NDArray[np.bool_],
+                 min_frozen: int) -> tuple[NDArray[np.int64], set[int]]:
+    """The frozen runs, ``(start, length)`` rows of at least ``min_frozen`` identical (or
+    opposite) consecutive quaternions, marked in ``bad`` (all but the first sample, and the sample
+    after a run that resumes with a ``big`` step); also the steps at which such a run resumes."""
+    n = q.shape[0]
+    same = np.all(q[1:] == q[:-1], axis=1) | np.all(q[1:] == -q[:-1], axis=1)
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], same.astype(np.int8), [0]])))
+    starts, lengths = edges[::2], edges[1::2] - edges[::2] + 1
+    keep = lengths >= min_frozen
+    frozen = np.column_stack([starts[keep], lengths[keep]]).astype(np.int64).reshape(-1, 2)
+    resumes = set()
+    for s, length in frozen:
+        bad[s + 1:s + length] = True
+        last = s + length - 1
+        if last < n - 1 and big[last]:
+            bad[last + 1] = True
+            resumes.add(int(last))
+    return frozen, resumes
+
+
 def detect_glitches(quat: ArrayLike, fs: float, *, gyro: ArrayLike | None = None, max_rate: float = 20.0,
                     max_excursion_s: float = 1.0, margin: float = 0.1, min_frozen: int = 5,
                     quiet_fraction: float = 0.25) -> GlitchReport:
@@ -173,19 +194,7 @@ def detect_glitches(quat: ArrayLike, fs: float, *, gyro: ArrayLike | None = None
     big = d - seen > thr
     bad = np.zeros(n, dtype=bool)
 
-    same = np.all(q[1:] == q[:-1], axis=1) | np.all(q[1:] == -q[:-1], axis=1)
-    edges = np.flatnonzero(np.diff(np.concatenate([[0], same.astype(np.int8), [0]])))
-    starts, lengths = edges[::2], edges[1::2] - edges[::2] + 1
-    keep = lengths >= min_frozen
-    frozen = np.column_stack([starts[keep], lengths[keep]]).astype(np.int64).reshape(-1, 2)
-    resumes = set()
-    for s, length in frozen:
-        bad[s + 1:s + length] = True
-        last = s + length - 1
-        if last < n - 1 and big[last]:
-            bad[last + 1] = True
-            resumes.add(int(last))
-
+    frozen, resumes = _frozen_runs(q, big, bad, int(min_frozen))
     events = np.flatnonzero(big)
     reach, quiet = int(math.floor(max_excursion_s * fs + 1e-9)), quiet_fraction * thr
     m = max(1, math.ceil(margin * fs - 1e-9))     # jump margin [samples]

@@ -379,15 +379,7 @@ def simulate(scenario: str = "handheld", *, duration: float | None = None, seed:
         already scaled by ``errors.motion``], ``mag_disturbance`` (N, 3) [µT, body],
         ``misalignment_rotvec`` (3,) [rad], ``mag_ref`` [µT] and ``conventions``.
     """
-    if scenario not in SCENARIOS:
-        raise ValueError(f"unknown scenario {scenario!r}; valid: {', '.join(SCENARIOS)}")
-    fs = float(SCENARIOS[scenario][0] if fs is None else fs)
-    duration = float(SCENARIOS[scenario][1] if duration is None else duration)
-    if not (np.isfinite(fs) and fs > 0):
-        raise ValueError(f"fs must be a positive number of Hz, got {fs!r}")
-    n = int(round(duration * fs)) if np.isfinite(duration) else 0
-    if n < 20:
-        raise ValueError(f"duration {duration!r} s at {fs:g} Hz gives {n} samples; at least 20 are needed")
+    fs, n = _rate_and_length(scenario, fs, duration)
     if errors is None:
         errors = SensorErrors.handheld() if scenario == "handheld" else SensorErrors.underwater()
     rng = dict(zip(_STREAMS, (np.random.default_rng(s) for s in np.random.SeedSequence(seed).spawn(len(_STREAMS)))))
@@ -403,10 +395,7 @@ def simulate(scenario: str = "handheld", *, duration: float | None = None, seed:
     true_acc = to_body(linear / G + np.array([0.0, 0.0, 1.0]))
     true_mag = to_body(np.broadcast_to(MAG_REF, (n, 3)))
 
-    axis = errors.misalignment_axis
-    if axis is None:
-        axis = rng["misalignment"].standard_normal(3)
-    rotvec = errors.misalignment * np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    rotvec = _misalignment_rotvec(errors, rng["misalignment"])
     mis = _rotvec_matrix(rotvec)  # sensor -> body; sensors read mis.T @ v_body
 
     gyro_bias = _constant(rng["gyro_bias"], errors.gyro_bias, errors.gyro_bias_fixed) + np.zeros((n, 3))
@@ -437,6 +426,31 @@ def simulate(scenario: str = "handheld", *, duration: float | None = None, seed:
     }
     return Recording(name=name or f"sim-{scenario}-{seed}", source=f"simulated:{scenario}", fs=fs,
                      gyro=gyro, acc=acc, mag=mag, quat=euler_to_quat(euler), meta=meta)
+
+
+def _rate_and_length(scenario: str, fs: float | None, duration: float | None) -> tuple[float, int]:
+    """The rate [Hz] and the number of samples of a simulated recording (the scenario's defaults
+    where None); ValueError for an unknown scenario, a rate that is not positive or fewer than 20
+    samples."""
+    if scenario not in SCENARIOS:
+        raise ValueError(f"unknown scenario {scenario!r}; valid: {', '.join(SCENARIOS)}")
+    fs = float(SCENARIOS[scenario][0] if fs is None else fs)
+    duration = float(SCENARIOS[scenario][1] if duration is None else duration)
+    if not (np.isfinite(fs) and fs > 0):
+        raise ValueError(f"fs must be a positive number of Hz, got {fs!r}")
+    n = int(round(duration * fs)) if np.isfinite(duration) else 0
+    if n < 20:
+        raise ValueError(f"duration {duration!r} s at {fs:g} Hz gives {n} samples; at least 20 are needed")
+    return fs, n
+
+
+def _misalignment_rotvec(errors: SensorErrors, rng: np.random.Generator) -> Array:
+    """The sensor's misalignment as a rotation vector [rad]: ``errors.misalignment`` about
+    ``errors.misalignment_axis``, or about a random axis drawn from ``rng`` when that is None."""
+    axis = errors.misalignment_axis
+    if axis is None:
+        axis = rng.standard_normal(3)
+    return errors.misalignment * np.asarray(axis, dtype=float) / np.linalg.norm(axis)
 
 
 def _normal(rng: np.random.Generator, sigma: float, n: int) -> Array:

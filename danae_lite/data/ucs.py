@@ -170,40 +170,8 @@ def load_recording(path: str | Path, *, name: str | None = None, units: Mapping[
     path = Path(path)
     unit = _resolve_units(path, units)
     raw = read_bytes(path, "UCS ADIS file")
-    starts, ends = line_spans(raw)
-    if starts.size == 0:
-        raise DataError(f"{path}: empty file; expected a header row ({','.join(HEADER[:4])},...)")
-    header = raw[starts[0]:ends[0]].decode("utf-8-sig", errors="replace").rstrip("\r").split(",")
-    index = {}
-    for i, h in enumerate(header):
-        index.setdefault(_key(h), i)
-    missing = [c for cols in REQUIRED.values() for c in cols if _key(c) not in index]
-    if missing:
-        raise DataError(f"{path}: header row lacks column(s) {', '.join(missing)}; expected the "
-                        f"rostopic export header ({','.join(HEADER)})")
-    wanted = {k: [index[_key(c)] for c in cols] for k, cols in REQUIRED.items()}
-    wanted |= {k: [index[_key(c)] for c in cols] for k, cols in OPTIONAL.items() if all(_key(c) in index for c in cols)}
-    n = starts.size - 1
-    if n < min_samples:
-        raise DataError(f"{path}: {n} data rows; at least {min_samples} are needed (one DANAE window is 20 samples)")
-    usecols = sorted({c for cols in wanted.values() for c in cols})
-    table = parse_numeric(path, raw, len(header), skip=1, usecols=usecols, names=[h.strip() for h in header])
-    pos = {c: j for j, c in enumerate(usecols)}
-    get = {k: table[:, [pos[c] for c in cols]] for k, cols in wanted.items()}
-
-    stamps = _integer_stamps(raw, wanted["time"][0], n)
-    if stamps is None:
-        stamps = get["time"][:, 0]
-    t = (stamps - stamps[0]) * UNITS["time"][unit["time"]]
-    steps = np.diff(t)
-    if (steps <= 0).any():
-        r = int(np.argmax(steps <= 0))
-        raise DataError(f"{path}: line {r + 3}, column {wanted['time'][0] + 1} (%time): time does not increase "
-                        f"({stamps[r + 1]!r} after {stamps[r]!r})")
-    fs = 1.0 / float(np.median(steps))
-    if not 0.5 <= fs <= 1000.0:
-        raise DataError(f"{path}: the %time column gives {fs:g} Hz with time unit {unit['time']!r}; "
-                        f"pass units={{'time': ...}} with one of {', '.join(UNITS['time'])}")
+    wanted, get = _columns(path, raw, min_samples)
+    stamps, t, fs = _timeline(path, raw, wanted, get, unit["time"])
     if unit["mag"] == "auto":
         unit["mag"] = _mag_unit(path, get["mag"])
     acc = get["acc"] * UNITS["acc"][unit["acc"]]
@@ -224,6 +192,53 @@ def load_recording(path: str | Path, *, name: str | None = None, units: Mapping[
     return Recording(name=name or f"ucs/{path.stem}", source="ucs", fs=fs,
                      gyro=get["gyro"] * UNITS["gyro"][unit["gyro"]], acc=sign * acc,
                      mag=get["mag"] * UNITS["mag"][unit["mag"]], quat=quat, meta=meta)
+
+
+def _columns(path: Path, raw: bytes, min_samples: int) -> tuple[dict[str, list[int]], dict[str, np.ndarray]]:
+    """The file's column indices per quantity (:data:`REQUIRED`, and :data:`OPTIONAL` where the
+    header has them) and their values, one ``(n, k)`` array per quantity; DataError for an empty
+    file, missing header names, too few rows or a malformed cell."""
+    starts, ends = line_spans(raw)
+    if starts.size == 0:
+        raise DataError(f"{path}: empty file; expected a header row ({','.join(HEADER[:4])},...)")
+    header = raw[starts[0]:ends[0]].decode("utf-8-sig", errors="replace").rstrip("\r").split(",")
+    index = {}
+    for i, h in enumerate(header):
+        index.setdefault(_key(h), i)
+    missing = [c for cols in REQUIRED.values() for c in cols if _key(c) not in index]
+    if missing:
+        raise DataError(f"{path}: header row lacks column(s) {', '.join(missing)}; expected the "
+                        f"rostopic export header ({','.join(HEADER)})")
+    wanted = {k: [index[_key(c)] for c in cols] for k, cols in REQUIRED.items()}
+    wanted |= {k: [index[_key(c)] for c in cols] for k, cols in OPTIONAL.items() if all(_key(c) in index for c in cols)}
+    n = starts.size - 1
+    if n < min_samples:
+        raise DataError(f"{path}: {n} data rows; at least {min_samples} are needed (one DANAE window is 20 samples)")
+    usecols = sorted({c for cols in wanted.values() for c in cols})
+    table = parse_numeric(path, raw, len(header), skip=1, usecols=usecols, names=[h.strip() for h in header])
+    pos = {c: j for j, c in enumerate(usecols)}
+    return wanted, {k: table[:, [pos[c] for c in cols]] for k, cols in wanted.items()}
+
+
+def _timeline(path: Path, raw: bytes, wanted: dict[str, list[int]], get: dict[str, np.ndarray],
+              time_unit: str) -> tuple[np.ndarray, np.ndarray, float]:
+    """The raw stamps, the time [s from the first row] and the rate [Hz] from the median step;
+    DataError for time that does not increase or a rate outside 0.5-1000 Hz."""
+    n = len(get["time"])
+    stamps = _integer_stamps(raw, wanted["time"][0], n)
+    if stamps is None:
+        stamps = get["time"][:, 0]
+    t = (stamps - stamps[0]) * UNITS["time"][time_unit]
+    steps = np.diff(t)
+    if (steps <= 0).any():
+        r = int(np.argmax(steps <= 0))
+        raise DataError(f"{path}: line {r + 3}, column {wanted['time'][0] + 1} (%time): time does not increase "
+                        f"({stamps[r + 1]!r} after {stamps[r]!r})")
+    fs = 1.0 / float(np.median(steps))
+    if not 0.5 <= fs <= 1000.0:
+        raise DataError(f"{path}: the %time column gives {fs:g} Hz with time unit {time_unit!r}; "
+                        f"pass units={{'time': ...}} with one of {', '.join(UNITS['time'])}")
+    return stamps, t, fs
 
 
 def split_train_test(rec: Recording, train_fraction: float = 0.8) -> tuple[Recording, Recording]:

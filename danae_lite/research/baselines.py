@@ -81,10 +81,9 @@ from ..data.recording import Recording
 from ..danae.windows import sliding_windows, stitch_overlap_average
 
 __all__ = ["BUTTER_CUTOFFS_HZ", "BUTTER_ORDER", "KF_Q_ANGLE", "KF_Q_BIAS", "LINEAR_WINDOW", "MA_LENGTHS",
-           "METHODS", "Butterworth", "Constant", "Context", "Danae", "LibraryFilter", "LinearMap", "Method",
-           "MovingAverage", "PaperKF", "TunedKF", "TunedKFSmoother", "apply_linear_map", "butterworth_lowpass",
-           "denoiser_source", "fit_linear_map", "is_method_name", "make_method", "moving_average", "total_error_rmse",
-           "total_objective", "train_objective"]
+           "METHODS", "Butterworth", "Constant", "Context", "Danae", "LibraryFilter", "LinearMap", "MovingAverage",
+           "PaperKF", "TunedKF", "TunedKFSmoother", "apply_linear_map", "butterworth_lowpass", "denoiser_source",
+           "fit_linear_map", "is_method_name", "make_method", "moving_average"]
 
 Array = NDArray[np.float64]
 
