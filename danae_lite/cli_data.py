@@ -92,7 +92,7 @@ def _paper_split(args: argparse.Namespace, name: str, base: Path | None) -> argp
 
 
 def load_data(args: argparse.Namespace, settings: RunSettings) -> Any:
-    """Resolve the experiment's recordings from the arguments; returns a experiments.Experiment."""
+    """Resolve the experiment's recordings from the arguments; returns an experiments.Experiment."""
     from .data import experiments
 
     name, fast = args.experiment, settings.fast

@@ -13,7 +13,11 @@ The Kalman-filter chapters (1-2) and the chapters' common ``setup()`` load no to
 from __future__ import annotations
 
 import ast
+import json
+import os
 import re
+import subprocess
+import sys
 from pathlib import Path
 
 import pytest
@@ -199,26 +203,15 @@ TORCH_FREE_CHAPTERS = ("01_kalman_filter", "02_sensors_to_estimates")
 
 def chapter_imports(stem: str) -> list[str]:
     """The import statements of a chapter's code cells (at any depth of a cell), as source lines."""
-    import json
-
-    nb = json.loads((PACKAGE.parent / "notebooks" / f"{stem}.ipynb").read_text(encoding="utf-8"))
-    lines = []
-    for cell in nb["cells"]:
-        if cell["cell_type"] == "code":
-            source = "".join(cell["source"])
-            tree = ast.parse("\n".join(l for l in source.splitlines() if not l.lstrip().startswith(("%", "!"))))
-            lines += [ast.unparse(n) for n in ast.walk(tree) if isinstance(n, (ast.Import, ast.ImportFrom))]
-    return lines
+    tree = ast.parse(chapter_sources()[stem][0])
+    return [ast.unparse(n) for n in ast.walk(tree) if isinstance(n, (ast.Import, ast.ImportFrom))]
 
 
 def loaded_after(statements: list[str]) -> set[str]:
     """The top-level names in ``sys.modules`` of a fresh interpreter after running ``statements``."""
-    import subprocess
-    import sys
-
     probe = "\n".join([*statements, "import sys", "print(' '.join(sorted({m.split('.')[0] for m in sys.modules})))"])
     run = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, check=True,
-                         cwd=PACKAGE.parent, env={**__import__("os").environ, "DANAE_CACHE": "off"})
+                         cwd=PACKAGE.parent, env={**os.environ, "DANAE_CACHE": "off"})
     return set(run.stdout.split())
 
 
@@ -325,8 +318,6 @@ def borrowed_names(sources: dict[str, tuple[str, bool]], package: Path) -> list[
 def chapter_sources() -> dict[str, tuple[str, bool]]:
     """Each chapter's code cells joined into one source (a module imported in one cell is used in
     the next), as the check reads them."""
-    import json
-
     out = {}
     for nb in sorted((PACKAGE.parent / "notebooks").glob("[0-9][0-9]_*.ipynb")):
         cells = []
