@@ -15,7 +15,8 @@ import pytest
 import scipy.linalg
 from scipy.spatial.transform import Rotation
 
-from danae_lite.kalman.filter import kalman_filter, kf_step, run_kf
+from danae_lite.kalman.filter import (TRIG_NUMPY, kalman_filter, kf_step, measurement_rows,
+                                      recursion, run_kf, sensor_arrays)
 from danae_lite.kalman.gains import gain_sequence, steady_state
 from danae_lite.kalman.model import (AUTHORS_DT, KFConfig, accel_tilt, euler_rates,
                                      mag_heading, system_matrices)
@@ -376,6 +377,45 @@ def test_block_general_and_naive_agree(params, dt):
         assert_close_scaled(res.P, P, rtol=1e-12)
         assert_close_scaled(res.gain, Ks[-1], rtol=1e-12)
     assert_close_scaled(fast.state, gen.state, rtol=1e-12)
+
+
+def _by_kf_step(gyro, acc, mag, dt, cfg, init):
+    """The filter written with the textbook kf_step, one sample at a time: states and gains."""
+    A, B, C = system_matrices(dt)
+    x, P = cfg.x0.copy(), cfg.P0.copy()
+    phi, theta = init
+    xs, Ks = [], []
+    for t in range(len(gyro)):
+        u = euler_rates(gyro[t:t + 1], phi, theta)[0]
+        roll_acc, pitch_acc = accel_tilt(acc[t:t + 1])[0]
+        y = [roll_acc, pitch_acc, mag_heading(mag[t:t + 1], phi, theta)[0]]
+        step = kf_step(x, P, u, y, A, B, C, cfg.Q, cfg.R)
+        x, P = step.x, step.P
+        phi, theta = x[0], x[2]
+        xs.append(x)
+        Ks.append(step.K)
+    return np.array(xs), np.array(Ks)
+
+
+def test_the_one_loop_equals_kf_step_for_one_setting_and_for_a_batch():
+    # recursion() is the filter's only data loop: floats for run_kf, NumPy vectors for the
+    # grid; fed kf_step's gains it must give kf_step's states, coupled gains included
+    gyro, acc, mag = random_inputs(150, seed=7)
+    dt, init = 0.02, (0.1, -0.05)
+    configs = [KFConfig(**TUNED), KFConfig(**COUPLED)]
+    refs = [_by_kf_step(gyro, acc, mag, dt, cfg, init) for cfg in configs]
+    arrays = sensor_arrays(gyro=gyro, acc=acc, mag=mag)
+    for cfg, (xs, Ks) in zip(configs, refs):
+        start = [*cfg.x0.tolist(), *init]
+        steps = recursion(measurement_rows(arrays)[1], map(tuple, Ks.reshape(-1, 18).tolist()), start, dt)
+        got = np.array([s[:6] for s in steps])
+        assert_close_scaled(got, xs, rtol=1e-12)
+    batch_start = [np.array([c.x0[i] for c in configs]) for i in range(6)] + [np.full(2, v) for v in init]
+    batch_gains = zip(*(np.stack([K.reshape(-1, 18)[:, j] for _, K in refs], 1) for j in range(18)))
+    steps = recursion(measurement_rows(arrays)[1], batch_gains, batch_start, dt, trig=TRIG_NUMPY)
+    got = np.array([np.stack(s[:6], axis=1) for s in steps])  # (N, K, 6)
+    for k, (xs, _) in enumerate(refs):
+        assert_close_scaled(got[:, k], xs, rtol=1e-12)
 
 
 def test_general_path_with_coupled_covariances_matches_naive():

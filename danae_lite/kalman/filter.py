@@ -16,20 +16,21 @@ Speed
 ``P``/``K`` do not depend on the data, so the gain sequence is computed first and stops as
 soon as it has converged to machine precision (about 170 steps for the paper's identities
 at dt = 0.1 s, about 1600 at dt = 0.01 s, more for a small ``Q``; cached per setting);
-the data loop then runs with plain ``math`` scalars, using ``K_t`` during that transient
-and the converged gain afterwards. When ``P0``, ``Q`` are
-block-diagonal in the (angle, bias) pairs and ``R`` is diagonal (the default), the three
-2-state blocks are filtered independently with 6 gains ("block" path); otherwise the full
-6x3 gain is used ("general" path). Both give the result of the plain matrix recursion.
+the data loop (:func:`recursion`) then runs with plain ``math`` scalars, using ``K_t``
+during that transient and the converged gain afterwards. When ``P0``, ``Q`` are
+block-diagonal in the (angle, bias) pairs and ``R`` is diagonal (the default), the gains are
+those of the three 2-state blocks iterated alone ("block" path); otherwise of the full 6x6
+matrices ("general" path). Both give the gains of the plain matrix recursion to rounding;
+the data loop is the same. :mod:`danae_lite.kalman.grid` runs that loop for many settings at
+once.
 """
 from __future__ import annotations
 
 import math
-from array import array
-from collections.abc import Iterator
+from collections.abc import Callable, Iterable, Iterator, Sequence
 from dataclasses import dataclass
 from itertools import chain, repeat
-from typing import TYPE_CHECKING, Literal
+from typing import TYPE_CHECKING, Any, Literal
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -42,7 +43,8 @@ from .model import (AUTHORS_DT, KFConfig, accel_tilt, check_dt, euler_rates,
 if TYPE_CHECKING:  # pragma: no cover
     from ..data.recording import Recording
 
-__all__ = ["PI", "TWO_PI", "KFResult", "KFStep", "initial_tilt", "kalman_filter", "kf_step", "run_kf", "sensor_arrays"]
+__all__ = ["PI", "TRIG_MATH", "TRIG_NUMPY", "TWO_PI", "KFResult", "KFStep", "initial_tilt", "kalman_filter", "kf_step",
+           "measurement_rows", "recursion", "run_kf", "sensor_arrays"]
 
 PI = math.pi
 TWO_PI = 2.0 * math.pi
@@ -132,7 +134,7 @@ class KFResult:
     gains : ndarray (N, 6, 3) or None
         Per-step gains ``K_t``, only with ``store_gains=True``.
     path : str
-        ``"block"`` or ``"general"`` (which implementation ran).
+        ``"block"`` or ``"general"`` (how the gains were computed).
     """
 
     euler: NDArray[np.float64]
@@ -159,103 +161,58 @@ class KFResult:
         return int(self.euler.shape[0])
 
 
-def _block_loop(
-    rows: Iterator[tuple[float, ...]],
-    gains: Iterator[tuple[float, ...]],
-    st: list[float],
+TRIG_MATH = (math.sin, math.cos, math.atan2)
+"""``sin``, ``cos``, ``atan2`` for one setting of plain floats (:func:`kalman_filter`)."""
+TRIG_NUMPY = (np.sin, np.cos, np.arctan2)
+"""The same for a batch of settings held in NumPy vectors (:mod:`danae_lite.kalman.grid`)."""
+
+
+def recursion(
+    rows: Iterable[tuple[float, ...]],
+    gains: Iterable[tuple[Any, ...]],
+    start: Sequence[Any],
     dt: float,
     wrap_yaw: bool = False,
-) -> tuple[array, ...]:
-    """The data loop for the three decoupled 2-state blocks, plain ``math`` scalars.
+    trig: tuple[Callable[..., Any], ...] = TRIG_MATH,
+) -> Iterator[tuple[Any, ...]]:
+    """Eqs (3), (6) over the samples, with the gains of eqs (4)-(5) computed beforehand.
 
-    ``st`` = [phi, b_phi, theta, b_theta, psi, b_psi, phi_hat, theta_hat] (initial state and
-    the roll/pitch used by the first step's rate and heading formulas); ``gains`` yields
-    (K00, K10, K21, K31, K42, K52) per step; ``rows`` yields (p, q, r, roll_acc, pitch_acc,
-    mx, my, mz) with m of unit norm. Returns arrays of phi, b_phi, theta, b_theta, psi,
-    b_psi, u0, u1, u2, psi_mag. ``wrap_yaw`` wraps the yaw innovation to [-pi, pi).
+    One state per setting: floats with :data:`TRIG_MATH` (one setting), or NumPy vectors of
+    ``K`` settings with :data:`TRIG_NUMPY` (a grid); the same lines run both.
+
+    ``rows`` yields ``(p, q, r, roll_acc, pitch_acc, mx, my, mz)`` per sample (rates [rad/s],
+    accelerometer tilt [rad], magnetometer of unit norm); ``gains`` the step's 6x3 gain,
+    row-major (18 numbers or vectors); ``start`` is ``[phi, b_phi, theta, b_theta, psi, b_psi,
+    phi_hat, theta_hat]``: ``x0`` and the roll/pitch the first step's rate and heading formulas
+    use. ``wrap_yaw`` wraps the yaw innovation to [-pi, pi). Yields, per sample, the
+    a-posteriori state ``(phi, b_phi, theta, b_theta, psi, b_psi)``, the inputs ``u`` [rad/s] and
+    the heading ``psi_mag`` [rad]: 10 values. A block-diagonal gain (zeros between the three
+    (angle, bias) pairs) gives the same numbers as each pair filtered alone: adding an exact
+    zero product changes no bit.
     """
-    sin, cos, atan2 = math.sin, math.cos, math.atan2
-    f, bf, h, bh, s, bs, pf, ph = st
-    out = tuple(array("d") for _ in range(10))
-    o_f, o_bf, o_h, o_bh, o_s, o_bs, o_u0, o_u1, o_u2, o_ym = (a.append for a in out)
-    for (p, q, r, ya, yb, mx, my, mz), (kf0, kf1, kh0, kh1, ks0, ks1) in zip(rows, gains):
-        sf = sin(pf)
-        cf = cos(pf)
-        sh = sin(ph)
-        ch = cos(ph)
-        # inputs: Euler rates at the previous estimates (w = sin(phi) q + cos(phi) r)
-        w = sf * q + cf * r
-        u0 = p + sh * w / ch
-        u1 = cf * q - sf * r
-        u2 = w / ch
-        # tilt-compensated heading at the previous estimates
-        ym = atan2(mz * sf - my * cf, mx * ch + sh * (my * sf + mz * cf))
-        # predict x' = A x + B u (bias unchanged) and update x = x' + K (y - C x'), per block
-        f = f - dt * bf + dt * u0
-        e = ya - f
-        f += kf0 * e
-        bf += kf1 * e
-        h = h - dt * bh + dt * u1
-        e = yb - h
-        h += kh0 * e
-        bh += kh1 * e
-        s = s - dt * bs + dt * u2
-        e = ym - s
-        if wrap_yaw:
-            e = (e + PI) % TWO_PI - PI
-        s += ks0 * e
-        bs += ks1 * e
-        pf = f
-        ph = h
-        o_f(f)
-        o_bf(bf)
-        o_h(h)
-        o_bh(bh)
-        o_s(s)
-        o_bs(bs)
-        o_u0(u0)
-        o_u1(u1)
-        o_u2(u2)
-        o_ym(ym)
-    return out
-
-
-def _general_loop(
-    rows: Iterator[tuple[float, ...]],
-    gains: Iterator[tuple[float, ...]],
-    st: list[float],
-    dt: float,
-    wrap_yaw: bool = False,
-) -> tuple[array, ...]:
-    """As :func:`_block_loop` with a full 6x3 gain per step (row-major, 18 numbers).
-
-    Its first lines (inputs and heading at the previous estimates) repeat :func:`_block_loop`'s
-    on purpose: both are hot loops of plain scalars, where a helper call per sample would cost
-    a third of the loop's time.
-    """
-    sin, cos, atan2 = math.sin, math.cos, math.atan2
-    x0, x1, x2, x3, x4, x5, pf, ph = st
-    out = tuple(array("d") for _ in range(10))
-    o_f, o_bf, o_h, o_bh, o_s, o_bs, o_u0, o_u1, o_u2, o_ym = (a.append for a in out)
+    sin, cos, atan2 = trig
+    x0, x1, x2, x3, x4, x5, pf, ph = start
     for (p, q, r, ya, yb, mx, my, mz), k in zip(rows, gains):
         (k00, k01, k02, k10, k11, k12, k20, k21, k22, k30, k31, k32, k40, k41, k42, k50, k51, k52) = k
-        sf = sin(pf)
-        cf = cos(pf)
-        sh = sin(ph)
-        ch = cos(ph)
+        sf, cf, sh, ch = sin(pf), cos(pf), sin(ph), cos(ph)
+        # inputs u: Euler rates at the previous estimates (w = sin(phi) q + cos(phi) r)
         w = sf * q + cf * r
         u0 = p + sh * w / ch
         u1 = cf * q - sf * r
         u2 = w / ch
+        # the tilt-compensated heading at the previous estimates
         ym = atan2(mz * sf - my * cf, mx * ch + sh * (my * sf + mz * cf))
+        # eq (3): x' = A x + B u (each angle integrates its rate less its bias; biases unchanged)
         x0 = x0 - dt * x1 + dt * u0
         x2 = x2 - dt * x3 + dt * u1
         x4 = x4 - dt * x5 + dt * u2
+        # the innovation y - C x'
         e0 = ya - x0
         e1 = yb - x2
         e2 = ym - x4
         if wrap_yaw:
             e2 = (e2 + PI) % TWO_PI - PI
+        # eq (6): x = x' + K (y - C x')
         x0, x1, x2, x3, x4, x5 = (
             x0 + (k00 * e0 + k01 * e1 + k02 * e2),
             x1 + (k10 * e0 + k11 * e1 + k12 * e2),
@@ -264,19 +221,8 @@ def _general_loop(
             x4 + (k40 * e0 + k41 * e1 + k42 * e2),
             x5 + (k50 * e0 + k51 * e1 + k52 * e2),
         )
-        pf = x0
-        ph = x2
-        o_f(x0)
-        o_bf(x1)
-        o_h(x2)
-        o_bh(x3)
-        o_s(x4)
-        o_bs(x5)
-        o_u0(u0)
-        o_u1(u1)
-        o_u2(u2)
-        o_ym(ym)
-    return out
+        pf, ph = x0, x2
+        yield x0, x1, x2, x3, x4, x5, u0, u1, u2, ym
 
 
 def _step(dt: float | None, cfg: KFConfig) -> float:
@@ -312,6 +258,18 @@ def sensor_arrays(**named: ArrayLike) -> dict[str, NDArray[np.float64]]:
     return arrays
 
 
+def measurement_rows(arrays: dict[str, NDArray[np.float64]]
+                     ) -> tuple[NDArray[np.float64], Iterator[tuple[float, ...]]]:
+    """The accelerometer tilt ``(N, 2)`` [rad] of :func:`sensor_arrays`' output, and the rows
+    :func:`recursion` reads: ``(p, q, r, roll_acc, pitch_acc, mx, my, mz)`` per sample as
+    floats (the magnetometer scaled to unit norm)."""
+    tilt = accel_tilt(arrays["acc"])
+    mu = unit_rows(arrays["mag"], "mag")
+    g = arrays["gyro"]
+    cols = (g[:, 0], g[:, 1], g[:, 2], tilt[:, 0], tilt[:, 1], mu[:, 0], mu[:, 1], mu[:, 2])
+    return tilt, zip(*(c.tolist() for c in cols))
+
+
 def initial_tilt(init_euler: ArrayLike | None, cfg: KFConfig) -> tuple[float, float]:
     """Roll and pitch [rad] of the step-0 formulas: ``init_euler``'s, else ``cfg.x0``'s."""
     if init_euler is None:
@@ -322,12 +280,11 @@ def initial_tilt(init_euler: ArrayLike | None, cfg: KFConfig) -> tuple[float, fl
     return float(ie[0]), float(ie[1])
 
 
-def _step_gains(seq: GainSequence, n: int, block: bool) -> Iterator[tuple[float, ...]]:
-    """The gains of the data loop's ``n`` steps: ``K_t`` during the transient, then the converged
-    gain for every later step; per step the block path's 6 numbers (K00, K10, K21, K31, K42, K52)
-    or the general path's 18 (the 6x3 gain, row-major)."""
+def _step_gains(seq: GainSequence, n: int) -> Iterator[tuple[float, ...]]:
+    """The gains of the data loop's ``n`` steps, each the 6x3 gain row-major: ``K_t`` during the
+    transient, then the converged gain for every later step."""
     m = min(n, len(seq))
-    picked = seq.K[:m, [0, 1, 2, 3, 4, 5], [0, 0, 1, 1, 2, 2]] if block else seq.K[:m].reshape(m, 18)
+    picked = seq.K[:m].reshape(m, 18)
     return chain(map(tuple, picked.tolist()), repeat(tuple(picked[-1].tolist())))
 
 
@@ -363,8 +320,8 @@ def kalman_filter(
     store_gains : bool
         Also return the per-step gains ``(N, 6, 3)`` (144 bytes per sample).
     method : {"auto", "block", "general"}
-        Implementation; ``"auto"`` uses the decoupled block loop when the configuration
-        is block-diagonal. All give the same numbers.
+        How the gains are computed; ``"auto"`` iterates the three decoupled blocks when the
+        configuration is block-diagonal. All give the same gains to rounding.
 
     Returns
     -------
@@ -379,17 +336,10 @@ def kalman_filter(
     block = use_block_path(cfg, method)
     seq = gain_sequence(dt, cfg, n_max=n, method="block" if block else "general")
 
-    tilt = accel_tilt(arrays["acc"])
-    mu = unit_rows(arrays["mag"], "mag")
-    g = arrays["gyro"]
-    cols = [g[:, 0], g[:, 1], g[:, 2], tilt[:, 0], tilt[:, 1], mu[:, 0], mu[:, 1], mu[:, 2]]
-    rows = zip(*(c.tolist() for c in cols))
-    st = [*map(float, cfg.x0), pf0, ph0]
-
-    loop = _block_loop if block else _general_loop
-    out = loop(rows, _step_gains(seq, n, block), st, dt, cfg.wrap_yaw_innovation)
-
-    res = [np.frombuffer(a, dtype=float) for a in out]
+    tilt, rows = measurement_rows(arrays)
+    start = [*map(float, cfg.x0), pf0, ph0]
+    steps = recursion(rows, _step_gains(seq, n), start, dt, cfg.wrap_yaw_innovation)
+    res = np.fromiter(chain.from_iterable(steps), dtype=float, count=10 * n).reshape(n, 10).T
     euler = np.column_stack((res[0], res[2], res[4]))
     bias = np.column_stack((res[1], res[3], res[5]))
     rates = np.column_stack(res[6:9])

@@ -1,27 +1,27 @@
 """The paper's KF run for many settings at once: the tuned KF's grid search in one pass.
 
-:func:`danae_lite.kalman.filter.run_kf` runs one setting with plain ``math`` scalars (1-3 µs a
-sample). A grid search runs hundreds of settings over the same recordings; here the same
-recursion steps every setting together, one NumPy vector of settings per state, so that a
-sample costs about as much for 324 settings as for a dozen.
+:func:`danae_lite.kalman.filter.run_kf` runs one setting with plain ``math`` scalars. A grid
+search runs hundreds of settings over the same recordings; here the same loop,
+:func:`danae_lite.kalman.filter.recursion`, steps every setting together, one NumPy vector of
+settings per state, so that a sample costs about as much for 324 settings as for a dozen.
 
-Same equations, same order of operations as :func:`danae_lite.kalman.filter.kalman_filter`'s block
-path: additions, products and quotients are IEEE-exact in both, so the two agree to the
-rounding of ``sin``, ``cos`` and ``atan2``, whose NumPy versions may differ from ``math``'s
-by an ulp on some CPUs (``tests/test_kf_grid.py`` bounds the difference).
+Additions, products and quotients are IEEE-exact in both, so the two agree to the rounding of
+``sin``, ``cos`` and ``atan2``, whose NumPy versions may differ from ``math``'s by an ulp on
+some CPUs (``tests/test_kf_grid.py`` bounds the difference).
 """
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass
-from typing import TYPE_CHECKING
+from itertools import count
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from . import gains as kf_gains, model
-from .filter import PI, TWO_PI, initial_tilt, run_kf, sensor_arrays
-from .model import KFConfig, accel_tilt
+from .filter import TRIG_NUMPY, initial_tilt, measurement_rows, recursion, sensor_arrays
+from .model import KFConfig
 from ..angles import euler_error_angle, wrap
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -67,9 +67,14 @@ class _Gains:
         self.index = index
         self.steady = self.table[-1].take(index)
 
-    def at(self, t: int) -> NDArray[np.float64]:
-        """Gains ``(6, K)`` of step ``t`` (the converged ones from step ``m`` on)."""
-        return self.table[t].take(self.index) if t < self.m else self.steady
+    def steps(self) -> Iterator[tuple[Any, ...]]:
+        """Each step's 6x3 gain row-major, as :func:`~danae_lite.kalman.filter.recursion` reads
+        it: the ``(K,)`` vectors of the blocks, exact zeros between them; from step ``m`` on
+        the converged gains."""
+        for t in count():
+            k = self.table[t].take(self.index) if t < self.m else self.steady
+            yield (k[0], 0.0, 0.0, k[1], 0.0, 0.0, 0.0, k[2], 0.0, 0.0, k[3], 0.0,
+                   0.0, 0.0, k[4], 0.0, 0.0, k[5])
 
 
 def _check(configs: Sequence[KFConfig]) -> tuple[bool, bool]:
@@ -100,42 +105,15 @@ def run_kf_grid(rec: "Recording", configs: Sequence[KFConfig]) -> NDArray[np.flo
     arrays = sensor_arrays(gyro=rec.gyro, acc=rec.acc, mag=rec.mag)
     n, k = len(arrays["gyro"]), len(configs)
     gains = _Gains(configs, dt, n)
-    tilt = accel_tilt(arrays["acc"])
-    mu = model.unit_rows(arrays["mag"], "mag")
-    g = arrays["gyro"]
-    rows = zip(*(c.tolist() for c in (g[:, 0], g[:, 1], g[:, 2], tilt[:, 0], tilt[:, 1], mu[:, 0], mu[:, 1],
-                                      mu[:, 2])))
+    _, rows = measurement_rows(arrays)
     x0 = np.array([cfg.x0 for cfg in configs], dtype=float).T  # (6, K)
-    f, bf, h, bh, s, bs = (x0[i].copy() for i in range(6))
     if from_truth:  # the step-0 rate and heading formulas use the true roll/pitch (as run_kf)
-        pf, ph = (np.full(k, v) for v in initial_tilt(rec.euler[0], configs[0]))
+        tilt0 = [np.full(k, v) for v in initial_tilt(rec.euler[0], configs[0])]
     else:
-        pf, ph = x0[0].copy(), x0[2].copy()
+        tilt0 = [x0[0].copy(), x0[2].copy()]
     euler = np.empty((n, 3, k))
-    sin, cos, atan2 = np.sin, np.cos, np.arctan2
-    for t, (p, q, r, ya, yb, mx, my, mz) in enumerate(rows):
-        kf0, kf1, kh0, kh1, ks0, ks1 = gains.at(t)
-        sf, cf, sh, ch = sin(pf), cos(pf), sin(ph), cos(ph)
-        w = sf * q + cf * r
-        u0 = p + sh * w / ch
-        u1 = cf * q - sf * r
-        u2 = w / ch
-        ym = atan2(mz * sf - my * cf, mx * ch + sh * (my * sf + mz * cf))
-        f = f - dt * bf + dt * u0
-        e = ya - f
-        f = f + kf0 * e
-        bf = bf + kf1 * e
-        h = h - dt * bh + dt * u1
-        e = yb - h
-        h = h + kh0 * e
-        bh = bh + kh1 * e
-        s = s - dt * bs + dt * u2
-        e = ym - s
-        if wrap_yaw:
-            e = np.remainder(e + PI, TWO_PI) - PI
-        s = s + ks0 * e
-        bs = bs + ks1 * e
-        pf, ph = f, h
+    steps = recursion(rows, gains.steps(), [*x0, *tilt0], dt, wrap_yaw, TRIG_NUMPY)
+    for t, (f, _, h, _, s, *_) in enumerate(steps):
         euler[t, 0], euler[t, 1], euler[t, 2] = f, h, s
     return euler.transpose(2, 0, 1)
 
