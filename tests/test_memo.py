@@ -89,21 +89,30 @@ def test_a_run_stored_on_disk_is_found_by_a_fresh_memo_of_the_same_code(store):
 def test_a_damaged_stored_run_counts_as_missing_and_is_removed(store):
     m = RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.ahrs.filters")
     m.put(("run", 1), np.ones(100))
-    (f,) = store.folder.glob("*.npy")
+    (f,) = store.folder.glob("runs/*/output.pkl")  # one item of joblib's store
     f.write_bytes(f.read_bytes()[:50])                  # cut short, as by a full disk
     assert RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.ahrs.filters").get(("run", 1)) is None
     assert not f.exists()
 
 
+def _stored(folder):
+    return sorted(p.parent.name for p in folder.glob("runs/*/output.pkl"))
+
+
 def test_the_store_removes_the_least_recently_used_runs_past_its_cap(tmp_path):
-    s = RunStore(tmp_path, max_bytes=3 * 928)            # three (100, 1) float64 runs with their headers
+    names = [f"{k:032x}" for k in range(4)]               # run names: 32 hex digits
+    s = RunStore(tmp_path, max_bytes=None)
     for k in range(3):
-        s.save(f"r{k}", np.full((100, 1), float(k)))
-        os.utime(tmp_path / f"r{k}.npy", (1000.0 + k, 1000.0 + k))
-    assert s.load("r0") is not None                      # loading marks it used: r1 is now the oldest
-    s.save("r3", np.zeros((100, 1)))
-    s.prune()
-    assert sorted(f.stem for f in tmp_path.glob("*.npy")) == ["r0", "r2", "r3"]
+        s.save(names[k], np.full((1000, 1), float(k)))
+    size = sum(f.stat().st_size for f in tmp_path.glob("runs/*/*"))
+    for k in range(3):
+        f = tmp_path / "runs" / names[k] / "output.pkl"
+        os.utime(f, (1000.0 + k, 1000.0 + k))
+    assert s.load(names[0]) is not None                  # loading marks it used: 1 is now the oldest
+    capped = RunStore(tmp_path, max_bytes=size)          # room for three runs
+    capped.save(names[3], np.zeros((1000, 1)))
+    capped.prune()
+    assert _stored(tmp_path) == [names[0], names[2], names[3]]
 
 
 def test_code_fingerprint_follows_the_code_the_runs_import_and_nothing_else(monkeypatch):

@@ -202,14 +202,20 @@ def test_loading_a_network_keeps_it_in_a_capped_cache(data, tmp_path):
     assert sorted(int(p.name.split("-seed")[1].split("-")[0]) for p in tmp_path.glob("*.pt")) == [0, 2]
 
 
-def test_the_worker_pool_stays_up_between_calls_and_survives_an_error():
-    # the same two workers answer both calls (they keep their imports and memos); a call that
-    # raises reaches the caller with its error, and the pool still works afterwards
-    first = set(networks.in_processes(os.getpid, [()] * 6, processes=2, threads=1))
+def _worker_state() -> tuple[int, int]:
+    return os.getpid(), torch.get_num_threads()
+
+
+def test_calls_run_in_kept_worker_processes_with_their_share_of_threads():
+    # joblib's workers answer both calls (they keep their imports and memos), each with the
+    # threads it was given; a call that raises reaches the caller with its error
+    first = list(networks.in_processes(_worker_state, [()] * 6, processes=2, threads=1))
+    second = list(networks.in_processes(_worker_state, [()] * 6, processes=2, threads=1))
+    pids = {pid for pid, _ in first + second}
+    assert os.getpid() not in pids and len(pids) <= 2
+    assert {threads for _, threads in first + second} == {1}
     with pytest.raises(ValueError, match="invalid literal"):
         list(networks.in_processes(int, [("1",), ("x",), ("3",)], processes=2, threads=1))
-    second = set(networks.in_processes(os.getpid, [()] * 6, processes=2, threads=1))
-    assert os.getpid() not in first and len(first | second) <= 2
     assert list(networks.in_processes(int, [("4",), ("5",)], processes=2, threads=1)) == [4, 5]
 
 

@@ -14,8 +14,8 @@ DANAE; ``"joint"`` for a variant that predicts all angles at once), and returns 
   in its place. A :class:`NetworkCache` with a size cap removes its least recently used files
   when a new one would exceed the cap (a plain folder has no cap).
 * **Parallel** (``jobs``): the trainings that the cache does not hold run in ``jobs`` worker
-  processes (:func:`in_processes`, the package's one process pool, kept for the life of the
-  process and also used by :mod:`danae_lite.research.crossval`), each with ``max(1, cores // jobs)`` torch threads
+  processes (:func:`in_processes`: :class:`joblib.Parallel`, also used by
+  :mod:`danae_lite.research.crossval`), each with ``max(1, cores // jobs)`` torch threads
   (:func:`threads_per_process`) unless the configuration fixes ``num_threads``.
   A network does not depend on the number of threads beyond float rounding
   (``tests/test_train.py``), so ``jobs`` changes the wall time, not the results.
@@ -29,12 +29,11 @@ import importlib
 import os
 import warnings
 from collections.abc import Callable, Iterator, Mapping, Sequence
-from concurrent.futures import ProcessPoolExecutor
 from dataclasses import dataclass, replace
-from multiprocessing import get_context
 from pathlib import Path
 from typing import Any, TypeVar
 
+import joblib
 import numpy as np
 from numpy.typing import NDArray
 
@@ -193,68 +192,49 @@ def _run(job: NetworkJob, progress: bool) -> TrainResult:
                  target_masks=None if job.masks is None else list(job.masks))
 
 
-def _init_worker(threads: int) -> None:
-    """Worker-process initialiser: ``threads`` torch CPU threads, and Ctrl-C (SIGINT) left to
-    the parent process, which cancels the calls not yet started (:func:`in_processes`); a
-    worker finishes the call it is running. (A notebook's kernel sends SIGINT to its whole
-    process group when it is interrupted or shut down: each worker would otherwise print a
-    ``KeyboardInterrupt`` traceback.)"""
-    import signal
-
-    import torch
-
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
-    torch.set_num_threads(threads)
-
-
 def threads_per_process(processes: int) -> int:
-    """Torch threads for each of ``processes`` concurrent workers: their share of the CPU cores
+    """CPU threads for each of ``processes`` concurrent workers: their share of the CPU cores
     (at least 1), so that together they do not oversubscribe the machine."""
     return max(1, (os.cpu_count() or 1) // processes)
 
 
-_POOLS: dict[tuple[int, int], ProcessPoolExecutor] = {}
-
-
-def worker_pool(processes: int, threads: int) -> ProcessPoolExecutor:
-    """This process's pool of ``processes`` workers (``spawn`` start) with ``threads`` torch CPU
-    threads each: started on first use and kept until the process exits, so that a worker
-    imports the package once and keeps what it remembered from one call to the next
-    (:mod:`danae_lite.research.memo`); a broken pool (a worker died) is replaced."""
-    key = (int(processes), int(threads))
-    pool = _POOLS.get(key)
-    if pool is None or getattr(pool, "_broken", False):
-        pool = ProcessPoolExecutor(max_workers=key[0], mp_context=get_context("spawn"),
-                                   initializer=_init_worker, initargs=(key[1],))
-        _POOLS[key] = pool
-    return pool
-
-
 def in_processes(fn: Callable[..., R], calls: Sequence[tuple[Any, ...]], *, processes: int,
                  threads: int) -> Iterator[R]:
-    """``fn(*args)`` for each ``args`` of ``calls``, run in the worker processes of
-    :func:`worker_pool`; results in order.
+    """``fn(*args)`` for each ``args`` of ``calls`` with :class:`joblib.Parallel` in ``processes``
+    worker processes (joblib's ``loky`` backend), results in order.
+
+    loky keeps its workers between calls with the same settings, so a worker imports the
+    package once and keeps what it remembered from one call to the next
+    (:mod:`danae_lite.research.memo`). Each worker runs ``threads`` CPU threads (joblib's
+    ``inner_max_num_threads``: torch's and the BLAS thread pools). Arrays reach the workers as
+    copies (no memory-mapping: a network trained on them must not see read-only arrays).
 
     Parameters
     ----------
     fn : a module-level function (it is pickled to the workers, as are its arguments).
     calls : one tuple of positional arguments per call.
-    processes : worker processes (``spawn`` start).
-    threads : torch CPU threads in each worker (e.g. :func:`threads_per_process`).
+    processes : worker processes.
+    threads : CPU threads in each worker (e.g. :func:`threads_per_process`).
 
     Yields
     ------
     The result of each call, in the order of ``calls``, as soon as it and those before it are
     done. If a call raises, the calls not yet started are cancelled and the error is raised.
     """
-    pool = worker_pool(processes, threads)
-    futures = [pool.submit(fn, *args) for args in calls]
-    try:
-        for fut in futures:
-            yield fut.result()
-    finally:
-        for fut in futures:
-            fut.cancel()
+    with joblib.parallel_config(backend="loky", inner_max_num_threads=threads):
+        run = joblib.Parallel(n_jobs=processes, return_as="generator", max_nbytes=None, verbose=0)
+        yield from run(joblib.delayed(_leaving_ctrl_c)(fn, *args) for args in calls)
+
+
+def _leaving_ctrl_c(fn: Callable[..., R], *args: Any) -> R:
+    """``fn(*args)`` in a worker that leaves Ctrl-C (SIGINT) to the parent process, which stops
+    the calls not yet started; the worker finishes the call it is running. (A notebook's kernel
+    sends SIGINT to its whole process group when it is interrupted or shut down: each worker
+    would otherwise print a ``KeyboardInterrupt`` traceback.)"""
+    import signal
+
+    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    return fn(*args)
 
 
 def run_jobs(jobs_: Sequence[NetworkJob], *, cache: str | os.PathLike[str] | None = None, jobs: int = 1,

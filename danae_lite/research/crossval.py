@@ -13,9 +13,9 @@ A :class:`Split` is one training set and the recordings held out from it. The pr
 alignment all see the training recordings only), and scores every held-out recording on its
 own: one row per split, test recording, method, sample subset and angle. Splits are
 independent, so ``jobs`` > 1 runs them in worker processes
-(:func:`danae_lite.danae.networks.in_processes`: ``spawn`` start, ``cores // jobs`` torch
-threads each, kept for the life of the process, so that a worker's filter runs and network
-outputs, :mod:`danae_lite.research.memo`, serve later splits too), after the workers have
+(:func:`danae_lite.danae.networks.in_processes`: joblib's workers, ``cores // jobs`` torch
+threads each, kept between calls, so that a worker's filter runs and network outputs,
+:mod:`danae_lite.research.memo`, serve later splits too), after the workers have
 trained the networks of all splits together, into the cache (:func:`_pretrain`); with a single
 split the workers train its networks instead.
 

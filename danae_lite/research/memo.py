@@ -10,8 +10,8 @@ what ran, its parameters and a :func:`digest` of the input arrays.
 
 A memo holds its runs in memory; when the entry point hands it a :class:`RunStore`
 (:func:`use_store`: the book's ``setup()`` does, in ``<cache>/runs/full`` or ``runs/fast``), it
-also keeps each run on disk, for later processes and later re-executions. A stored run's file
-name hashes its key and the memo's :func:`code_fingerprint`: the code of the module that
+also keeps each run on disk, in joblib's store, for later processes and later re-executions. A
+stored run's name hashes its key and the memo's :func:`code_fingerprint`: the code of the module that
 computes it and of every module of the package that module imports, the versions of the
 libraries they import, and the CPU's vector extensions (numpy and torch round differently on
 another CPU). Editing any of that code makes every run of that memo new; editing a chapter,
@@ -35,6 +35,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, TypeVar
 
+import joblib
 import numpy as np
 from numpy.typing import NDArray
 
@@ -59,48 +60,52 @@ def digest(*arrays: NDArray[Any] | None) -> str:
 
 @dataclass(frozen=True)
 class RunStore:
-    """A folder of runs kept on disk (one ``.npy`` file per run), capped in size.
+    """Runs kept on disk in joblib's store (the storage of a :class:`joblib.Memory` in
+    ``folder``), capped in size.
 
-    Loading a run marks it used (its modification time is set to now); storing runs past
-    ``max_bytes`` removes the least recently used files first. A damaged file counts as
-    missing (it is removed and the run computed again). Files are written whole under a
-    temporary name and then renamed, so processes sharing the folder never read half a file."""
+    A run is one item of the store, under its name (32 hex digits). joblib writes an item whole
+    under a temporary name and then renames it, so processes sharing the folder never read half
+    of one; :meth:`prune` is joblib's ``reduce_size``, which removes the least recently used
+    items first. A damaged item counts as missing (it is removed and the run computed again)."""
 
     folder: Path
-    """Where the ``.npy`` files are."""
+    """The folder of the :class:`joblib.Memory` (a run is the item ``runs/<name>/output.pkl``)."""
     max_bytes: int | None = None
-    """Cap on the total size of the folder's ``.npy`` files [bytes]; None: no cap."""
+    """Cap on the total size of the stored runs [bytes]; None: no cap."""
+
+    @functools.cached_property
+    def memory(self) -> joblib.Memory:
+        """The :class:`joblib.Memory` whose storage holds the runs (it prints nothing)."""
+        return joblib.Memory(self.folder, verbose=0)
 
     def load(self, name: str) -> NDArray[Any] | None:
-        """The run stored under ``name``, or None."""
-        f = self.folder / f"{name}.npy"
+        """The run stored under ``name``, or None; loading marks it used."""
+        item = ["runs", name]
+        backend = self.memory.store_backend
+        if not backend.contains_item(item):
+            return None
         try:
-            value = np.load(f, allow_pickle=False)
-            os.utime(f)
-        except FileNotFoundError:
+            value = backend.load_item(item, verbose=0)
+            os.utime(Path(backend.location, *item, "output.pkl"))  # used now: the last to go
+        except FileNotFoundError:  # removed meanwhile by another process sharing the folder
             return None
-        except (OSError, ValueError, EOFError):  # damaged: computed again
-            f.unlink(missing_ok=True)
+        except Exception:  # damaged (cut short, unreadable): computed again
+            backend.clear_item(item)
             return None
-        return value
+        return value if isinstance(value, np.ndarray) else None
 
     def save(self, name: str, value: NDArray[Any]) -> None:
         """Store ``value`` under ``name`` (replacing any run stored under it)."""
-        self.folder.mkdir(parents=True, exist_ok=True)
-        tmp = self.folder / f".{name}.{os.getpid()}.tmp"
-        with open(tmp, "wb") as fh:
-            np.save(fh, value, allow_pickle=False)
-        os.replace(tmp, self.folder / f"{name}.npy")
+        self.memory.store_backend.dump_item(["runs", name], np.asarray(value), verbose=0)
         _written[self.folder] = _written.get(self.folder, 0) + value.nbytes
         if self.max_bytes is not None and _written[self.folder] > self.max_bytes // 20:
             self.prune()  # every twentieth of the cap written: a folder scan is not free
 
-    def prune(self) -> list[Path]:
-        """Remove the least recently used runs until the folder is within ``max_bytes``."""
+    def prune(self) -> None:
+        """Remove the least recently used runs until the store is within ``max_bytes``."""
         _written[self.folder] = 0
-        from ..danae.networks import prune_folder  # not at import: setup() of the KF chapters loads no torch
-
-        return prune_folder(self.folder, "*.npy", self.max_bytes)
+        if self.max_bytes is not None:
+            self.memory.reduce_size(bytes_limit=self.max_bytes)
 
 
 _written: dict[Path, int] = {}
