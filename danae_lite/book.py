@@ -48,7 +48,8 @@ _VERBATIM = re.compile(r"^```.*?^```[^\n]*$|`[^`\n]*`|\$\$.*?\$\$|\$[^$\n]+\$", 
 
 def setup(seed: int = DEFAULT_SEED, *, verbose: bool = True) -> RunSettings:
     """Apply the book's common settings and return them (:class:`~danae_lite.runtime.RunSettings`
-    from ``DANAE_FAST``, ``DANAE_DATA``, ``DANAE_CACHE`` and ``DANAE_JOBS``)."""
+    from ``DANAE_FAST``, ``DANAE_DATA``, ``DANAE_CACHE``, ``DANAE_JOBS`` and
+    ``DANAE_SCHEDULER``)."""
     from . import plots
 
     plots.use_style()
@@ -59,11 +60,15 @@ def setup(seed: int = DEFAULT_SEED, *, verbose: bool = True) -> RunSettings:
     _RECORDED.clear()
     cfg = RunSettings.from_env(seed=seed)
     memo.use_store(cfg.run_store)
+    if cfg.scheduler is not None:  # imported only then: chapters 1-2 load no torch
+        from .danae.networks import use_scheduler
+
+        use_scheduler(cfg.scheduler)
     if verbose:
         mode = "FAST (DANAE_FAST=1: reduced steps, data and seeds)" if cfg.fast else "full"
         data = f"{cfg.data_dir}" if cfg.data_dir else "not set (DANAE_DATA unset): the simulator stands in"
-        print(f"mode: {mode} | data: {data} | seed: {cfg.seed} | device: {cfg.device} "
-              f"({cfg.jobs} worker process(es))")
+        workers = f"Dask cluster {cfg.scheduler}" if cfg.scheduler else f"{cfg.jobs} worker process(es)"
+        print(f"mode: {mode} | data: {data} | seed: {cfg.seed} | device: {cfg.device} ({workers})")
     return cfg
 
 

@@ -50,7 +50,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from .runtime import (CACHE_ENV, CACHE_GB_ENV, DATA_ENV, DEFAULT_CACHE_GB, FAST_ENV,
-                      FAST_EPOCHS, FAST_MAX_STEPS, FAST_SEEDS, FULL_SEEDS, JOBS_ENV)
+                      FAST_EPOCHS, FAST_MAX_STEPS, FAST_SEEDS, FULL_SEEDS, JOBS_ENV, SCHEDULER_ENV)
 from .data.experiments import (FAST_DURATION, FAST_SAMPLES, OXIOD_TEST, OXIOD_TRAIN,
                                PAPER_SPLIT_FOLDER, PAPER_SPLIT_TEST, PAPER_SPLIT_TRAIN,
                                TRAIN_FRACTION)
@@ -148,6 +148,7 @@ environment:
                off: no cache); networks go to its full/ or fast/ sub-folder
   {CACHE_GB_ENV}  size cap of each of those sub-folders in GB (default {DEFAULT_CACHE_GB:g}; least recently used removed first)
   {JOBS_ENV}   worker processes used when --jobs is not given (default 1)
+  {SCHEDULER_ENV}  Dask scheduler address used when --scheduler is not given (unset: this machine)
 
 example:
   {DATA_ENV}=/data {PROG} reproduce --experiment oxiod --seeds 0 1 2 --out runs/oxiod
@@ -270,6 +271,10 @@ def _add_common(p: argparse.ArgumentParser, command: str) -> None:
                      help=f"worker processes for independent trainings (angles x seeds, and folds with --folds), "
                           f"each with cores/N torch threads; the results do not depend on it. Default: ${JOBS_ENV}, "
                           "else 1")
+    p.add_argument("--scheduler", metavar="ADDRESS", default=None,
+                     help=f"send the trainings (and filter runs) that would go to worker processes to the Dask "
+                          f"cluster whose scheduler is at ADDRESS, e.g. tcp://host:8786; this process keeps "
+                          f"the cache. Default: ${SCHEDULER_ENV}, else worker processes on this machine")
     p.add_argument("--cache", metavar="DIR", default=None,
                      help=f"keep trained networks under DIR (its full/ or fast/ sub-folder) and reuse them when "
                           f"the data, settings and code are the same; 'off': cache nothing. Default: ${CACHE_ENV}, "
@@ -357,9 +362,16 @@ def _prepare(args: argparse.Namespace) -> tuple[RunSettings, Path, Any, TrainCon
     device = _check_device(args.device)
     try:
         settings = RunSettings.from_env(fast=args.fast, data=args.data_dir, cache=args.cache, n_jobs=args.jobs,
-                                        seeds=seeds, device=device)
-    except ValueError as err:  # an unrecognised DANAE_FAST or DANAE_JOBS value
+                                        seeds=seeds, device=device, scheduler_address=args.scheduler)
+    except ValueError as err:  # an unrecognised DANAE_FAST, DANAE_JOBS or scheduler value
         raise UsageError(str(err)) from None
+    if settings.scheduler is not None:
+        from .danae.networks import use_scheduler
+
+        try:
+            use_scheduler(settings.scheduler)
+        except OSError as err:  # no scheduler answers at that address
+            raise UsageError(f"--scheduler {settings.scheduler}: {_one_line(err)}") from None
     out_dir = _out_dir(args)
 
     import matplotlib

@@ -24,6 +24,11 @@ takes its settings as arguments and never reads the environment.
 ``DANAE_JOBS``
     Worker processes for independent trainings and folds (the book's setting; the command
     line has ``--jobs``). Default 1.
+``DANAE_SCHEDULER``
+    Address of a Dask scheduler (e.g. ``tcp://host:8786``; the command line has
+    ``--scheduler``): the trainings and filter runs that would go to worker processes go to
+    that cluster's workers instead (:func:`danae_lite.danae.networks.use_scheduler`). Unset:
+    worker processes on this machine.
 ``DANAE_DATA``
     Directory that holds the real datasets in their original layout, as sub-folders
     ``oxiod/`` (``<setting>/<dataN>/syn/imuK.csv`` + ``viK.csv``), ``broad/``
@@ -54,6 +59,7 @@ DEFAULT_CACHE_GB = 4.0
 """Default cap of each cache sub-folder (``full/``, ``fast/``) [GB]; a full-mode run of the
 whole book stores about 1 GB of networks."""
 JOBS_ENV = "DANAE_JOBS"
+SCHEDULER_ENV = "DANAE_SCHEDULER"
 DEFAULT_SEED = 0
 
 _TRUE = {"1", "true", "yes", "on"}
@@ -154,19 +160,36 @@ def jobs(value: int | None = None) -> int:
     return n
 
 
+def scheduler(value: str | None = None) -> str | None:
+    """The Dask scheduler's address: ``value`` if given, else ``DANAE_SCHEDULER``, else None.
+    Raises ``ValueError`` for an address without a protocol and a port (``tcp://host:8786``)."""
+    raw = (value if value is not None else os.environ.get(SCHEDULER_ENV, "")).strip()
+    if not raw:
+        return None
+    protocol, _, rest = raw.partition("://")
+    if not protocol or not rest or not rest.rpartition(":")[2].isdigit():
+        origin = "scheduler" if value is not None else f"${SCHEDULER_ENV}"
+        raise ValueError(f"{origin}={raw!r}: expected a Dask scheduler address such as tcp://host:8786")
+    return raw
+
+
 def kernel_environment(*, data_dir: Path | None, cache: Path | None, fast: bool, n_jobs: int,
-                       max_gb: float = DEFAULT_CACHE_GB, base: Mapping[str, str] | None = None) -> dict[str, str]:
+                       max_gb: float = DEFAULT_CACHE_GB, base: Mapping[str, str] | None = None,
+                       scheduler_address: str | None = None) -> dict[str, str]:
     """The environment of a child process (a chapter's kernel) that is to run with these settings.
 
     ``base`` (default: this process's environment) without any ``DANAE_*`` variable, plus ``DANAE_FAST``,
     ``DANAE_JOBS``, ``DANAE_CACHE`` (the cache root, or ``off`` for None), ``DANAE_CACHE_GB`` and,
-    when set, ``DANAE_DATA``: what the child's :meth:`RunSettings.from_env` reads back.
+    when set, ``DANAE_DATA`` and ``DANAE_SCHEDULER``: what the child's :meth:`RunSettings.from_env`
+    reads back.
     """
     env = {k: v for k, v in (os.environ if base is None else base).items() if not k.startswith("DANAE_")}
     env.update({FAST_ENV: "1" if fast else "0", JOBS_ENV: str(n_jobs), CACHE_ENV: str(cache) if cache else "off",
                 CACHE_GB_ENV: repr(float(max_gb))})
     if data_dir is not None:
         env[DATA_ENV] = str(data_dir)
+    if scheduler_address is not None:
+        env[SCHEDULER_ENV] = scheduler_address
     return env
 
 
@@ -206,6 +229,8 @@ class RunSettings:
     """Worker processes for independent trainings and folds."""
     device: str = "cpu"
     """Torch device of the trainings: the CPU unless asked (``device=`` of :meth:`from_env`)."""
+    scheduler: str | None = None
+    """Address of the Dask scheduler that takes the parallel work, or None (this machine)."""
 
     @property
     def cache(self) -> "NetworkCache | None":
@@ -217,16 +242,17 @@ class RunSettings:
     def from_env(cls, *, fast: bool | None = None, data: str | os.PathLike[str] | None = None,
                  cache: str | os.PathLike[str] | None = None, n_jobs: int | None = None,
                  seeds: tuple[int, ...] | None = None, seed: int = DEFAULT_SEED,
-                 device: str | None = None) -> "RunSettings":
+                 device: str | None = None, scheduler_address: str | None = None) -> "RunSettings":
         """Settings from explicit values, falling back to ``DANAE_FAST``, ``DANAE_DATA``,
-        ``DANAE_CACHE``, ``DANAE_CACHE_GB`` and ``DANAE_JOBS``: what an entry point calls once.
-        The device is ``device`` if given, else the CPU (a GPU is used only when asked for)."""
+        ``DANAE_CACHE``, ``DANAE_CACHE_GB``, ``DANAE_JOBS`` and ``DANAE_SCHEDULER``: what an
+        entry point calls once. The device is ``device`` if given, else the CPU (a GPU is used
+        only when asked for)."""
         is_fast = fast_mode(fast)
         default_seeds = FAST_SEEDS if is_fast else FULL_SEEDS
         return cls(fast=is_fast, data_dir=data_dir(data), seed=seed,
                    seeds=tuple(int(s) for s in (seeds if seeds is not None else default_seeds)),
                    cache_root=cache_dir(cache), cache_gb=cache_gb(), jobs=jobs(n_jobs),
-                   device=device or "cpu")
+                   device=device or "cpu", scheduler=scheduler(scheduler_address))
 
     @property
     def run_store(self) -> "RunStore | None":

@@ -416,12 +416,13 @@ def _refusal(data_dir: Path | None, fast: bool) -> str | None:
 
 
 def _kernel_setup(data: Path | None, cache: Path | None, *, fast: bool, jobs: int,
-                  cache_gb: float) -> tuple[dict[str, str], Path | None]:
+                  cache_gb: float, scheduler: str | None = None) -> tuple[dict[str, str], Path | None]:
     """The kernels' environment (:func:`~danae_lite.runtime.kernel_environment`, inline figures, a
     fixed hash seed) and this mode's network cache folder (created; None without a cache)."""
     if cache is not None:
         cache.mkdir(parents=True, exist_ok=True)
-    env = kernel_environment(data_dir=data, cache=cache, fast=fast, n_jobs=jobs, max_gb=cache_gb)
+    env = kernel_environment(data_dir=data, cache=cache, fast=fast, n_jobs=jobs, max_gb=cache_gb,
+                             scheduler_address=scheduler)
     env.update({"MPLBACKEND": INLINE_BACKEND, "PYTHONHASHSEED": "0"})
     return env, cache / ("fast" if fast else "full") if cache is not None else None
 
@@ -447,7 +448,7 @@ def _one_line(row: Mapping[str, Any]) -> str:
 def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str | os.PathLike[str] | None,
                  cache_dir: str | os.PathLike[str] | None, fast: bool, jobs: int = 1, cache_gb: float = DEFAULT_CACHE_GB,
                  out_dir: str | os.PathLike[str] | None = None, timeout: float | None = 3600,
-                 progress: bool = True, cold: bool = False) -> pd.DataFrame:
+                 progress: bool = True, cold: bool = False, scheduler: str | None = None) -> pd.DataFrame:
     """Execute chapters one after the other and write them with their outputs.
 
     The committed notebooks hold a full-mode run on real data. They are therefore rewritten
@@ -479,6 +480,9 @@ def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str |
     cold
         ``cache_dir`` was empty when the first chapter started: each chapter's record is kept
         as its cold record too (:func:`cold_record`).
+    scheduler
+        Address of a Dask scheduler, given as ``DANAE_SCHEDULER`` (the chapters' trainings then
+        run on that cluster); None: worker processes on this machine.
 
     Returns
     -------
@@ -507,7 +511,7 @@ def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str |
     if in_place and (why := _refusal(data, fast)):
         raise BookExecutionError(why)
     cache = Path(cache_dir).expanduser().resolve() if cache_dir is not None else None
-    env, networks = _kernel_setup(data, cache, fast=fast, jobs=jobs, cache_gb=cache_gb)
+    env, networks = _kernel_setup(data, cache, fast=fast, jobs=jobs, cache_gb=cache_gb, scheduler=scheduler)
     if out is not None and not in_place:
         out.mkdir(parents=True, exist_ok=True)
         if progress:
@@ -701,7 +705,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             cache = _cold_cache(args.cache, Path(tmp)) if args.cold else settings.cache_root
             execute_book(paths, data_dir=settings.data_dir, cache_dir=cache, cache_gb=settings.cache_gb,
                          fast=settings.fast, jobs=settings.jobs, out_dir=args.out,
-                         timeout=args.timeout if args.timeout > 0 else None, cold=args.cold)
+                         timeout=args.timeout if args.timeout > 0 else None, cold=args.cold,
+                         scheduler=settings.scheduler)
         if args.out is None:
             try:
                 write_pages(root, folder)

@@ -16,7 +16,9 @@ DANAE; ``"joint"`` for a variant that predicts all angles at once), and returns 
 * **Parallel** (``jobs``): the trainings that the cache does not hold run in ``jobs`` worker
   processes (:func:`in_processes`: :class:`joblib.Parallel`, also used by
   :mod:`danae_lite.research.crossval`), each with ``max(1, cores // jobs)`` torch threads
-  (:func:`threads_per_process`) unless the configuration fixes ``num_threads``.
+  (:func:`threads_per_process`) unless the configuration fixes ``num_threads``. With a Dask
+  scheduler (:func:`use_scheduler`) the trainings go to the cluster's workers instead, with
+  their arrays; this process still looks them up in the cache and stores them.
   A network does not depend on the number of threads beyond float rounding
   (``tests/test_train.py``), so ``jobs`` changes the wall time, not the results.
 """
@@ -198,31 +200,65 @@ def threads_per_process(processes: int) -> int:
     return max(1, (os.cpu_count() or 1) // processes)
 
 
-def in_processes(fn: Callable[..., R], calls: Sequence[tuple[Any, ...]], *, processes: int,
-                 threads: int) -> Iterator[R]:
-    """``fn(*args)`` for each ``args`` of ``calls`` with :class:`joblib.Parallel` in ``processes``
-    worker processes (joblib's ``loky`` backend), results in order.
+_scheduler: str | None = None
+"""The Dask scheduler that :func:`in_processes` sends its calls to (:func:`use_scheduler`);
+None: worker processes on this machine."""
 
-    loky keeps its workers between calls with the same settings, so a worker imports the
-    package once and keeps what it remembered from one call to the next
-    (:mod:`danae_lite.research.memo`). Each worker runs ``threads`` CPU threads (joblib's
+
+def use_scheduler(address: str | None) -> None:
+    """Send the calls of :func:`in_processes` (trainings, filter runs) to the Dask cluster whose
+    scheduler is at ``address`` (e.g. ``tcp://host:8786``), through joblib's ``dask`` backend;
+    None: worker processes on this machine. Set by an entry point (``--scheduler``,
+    ``DANAE_SCHEDULER``); dask is imported only here, when an address is given."""
+    global _scheduler
+    if address is not None:
+        _dask_client(address)  # connect now: a wrong address fails at the entry point
+    _scheduler = address
+
+
+@functools.lru_cache(maxsize=None)
+def _dask_client(address: str) -> Any:
+    """One :class:`distributed.Client` per scheduler address for the life of the process."""
+    from distributed import Client
+
+    return Client(address, set_as_default=False)
+
+
+def in_processes(fn: Callable[..., R], calls: Sequence[tuple[Any, ...]], *, processes: int,
+                 threads: int, local: bool = False) -> Iterator[R]:
+    """``fn(*args)`` for each ``args`` of ``calls`` with :class:`joblib.Parallel`, results in order.
+
+    On this machine (no :func:`use_scheduler` address, or ``local``): ``processes`` worker
+    processes of joblib's ``loky`` backend, kept between calls with the same settings, so a
+    worker imports the package once and keeps what it remembered from one call to the next
+    (:mod:`danae_lite.research.memo`); each runs ``threads`` CPU threads (joblib's
     ``inner_max_num_threads``: torch's and the BLAS thread pools). Arrays reach the workers as
     copies (no memory-mapping: a network trained on them must not see read-only arrays).
+    With a scheduler: every worker of the Dask cluster (joblib's ``dask`` backend), each
+    running the calls with the threads the cluster gives it; the calls and their arrays travel
+    to the workers and the results come back, so the workers need no shared disk or data.
 
     Parameters
     ----------
     fn : a module-level function (it is pickled to the workers, as are its arguments).
     calls : one tuple of positional arguments per call.
-    processes : worker processes.
-    threads : CPU threads in each worker (e.g. :func:`threads_per_process`).
+    processes : worker processes on this machine.
+    threads : CPU threads in each of them (e.g. :func:`threads_per_process`).
+    local : on this machine even when a scheduler is set (calls that read files by path).
 
     Yields
     ------
     The result of each call, in the order of ``calls``, as soon as it and those before it are
     done. If a call raises, the calls not yet started are cancelled and the error is raised.
     """
-    with joblib.parallel_config(backend="loky", inner_max_num_threads=threads):
-        run = joblib.Parallel(n_jobs=processes, return_as="generator", max_nbytes=None, verbose=0)
+    if _scheduler is None or local:
+        config = joblib.parallel_config(backend="loky", inner_max_num_threads=threads)
+        n_jobs = processes
+    else:
+        config = joblib.parallel_config(backend="dask", client=_dask_client(_scheduler))
+        n_jobs = -1
+    with config:
+        run = joblib.Parallel(n_jobs=n_jobs, return_as="generator", max_nbytes=None, verbose=0)
         yield from run(joblib.delayed(_leaving_ctrl_c)(fn, *args) for args in calls)
 
 
@@ -230,10 +266,13 @@ def _leaving_ctrl_c(fn: Callable[..., R], *args: Any) -> R:
     """``fn(*args)`` in a worker that leaves Ctrl-C (SIGINT) to the parent process, which stops
     the calls not yet started; the worker finishes the call it is running. (A notebook's kernel
     sends SIGINT to its whole process group when it is interrupted or shut down: each worker
-    would otherwise print a ``KeyboardInterrupt`` traceback.)"""
+    would otherwise print a ``KeyboardInterrupt`` traceback.) A Dask worker runs calls in
+    threads of its own, which receive no signal: nothing to do there."""
     import signal
+    import threading
 
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
     return fn(*args)
 
 
@@ -241,13 +280,15 @@ def run_jobs(jobs_: Sequence[NetworkJob], *, cache: str | os.PathLike[str] | Non
              progress: bool = False) -> list[TrainResult]:
     """Train every job (or load it from ``cache``); results in the order of ``jobs_``.
 
-    ``jobs`` > 1 trains the missing networks in that many worker processes (see the module
-    docstring); their results are stored in the cache by this process.
+    ``jobs`` > 1 trains the missing networks in that many worker processes, or on the Dask
+    cluster of :func:`use_scheduler` (see the module docstring), each with
+    :func:`threads_per_process` torch threads unless the configuration fixes them; this process
+    looks the networks up in the cache and stores what comes back.
     """
     store = as_cache(cache)
     results: list[TrainResult | None] = [_cached(j, store) for j in jobs_]
     todo = [i for i, r in enumerate(results) if r is None]
-    if jobs > 1 and len(todo) > 1:
+    if (jobs > 1 or _scheduler is not None) and len(todo) > 1:
         threads = threads_per_process(jobs)
         calls = [(replace(jobs_[i], config=_threads(jobs_[i].config, threads)), False) for i in todo]
         for res, i in zip(in_processes(_run, calls, processes=jobs, threads=threads), todo):
@@ -266,10 +307,10 @@ def pretrain(jobs_: Sequence[NetworkJob], *, cache: str | os.PathLike[str] | Non
     splits one after the other, so that every worker stays busy (three seeds on two workers
     would leave one idle a third of the time). The fits then find their networks in the cache.
     The largest trainings start first (:func:`_work`); the same network asked for twice (one
-    :func:`cache_key`) is trained once. Nothing is
-    trained without a cache or with one process. Returns the number of networks trained."""
+    :func:`cache_key`) is trained once. Nothing is trained without a cache, or with one
+    process and no Dask scheduler. Returns the number of networks trained."""
     store = as_cache(cache)
-    if store is None or jobs <= 1:
+    if store is None or (jobs <= 1 and _scheduler is None):
         return 0
     missing = {cache_key(j): j for j in jobs_ if _cached(j, store) is None}
     run_jobs(sorted(missing.values(), key=_work, reverse=True), cache=store, jobs=jobs)

@@ -16,7 +16,8 @@ independent, so ``jobs`` > 1 runs them in worker processes
 (:func:`danae_lite.danae.networks.in_processes`: joblib's workers, ``cores // jobs`` torch
 threads each, kept between calls, so that a worker's filter runs and network outputs,
 :mod:`danae_lite.research.memo`, serve later splits too), after the workers have
-trained the networks of all splits together, into the cache (:func:`_pretrain`); with a single
+trained the networks of all splits together, into the cache (:func:`_pretrain`: on the Dask
+cluster when one is named, :func:`danae_lite.danae.networks.use_scheduler`); with a single
 split the workers train its networks instead.
 
 Aggregation (:class:`CrossValidation`): per recording the mean over seeds, then the mean and
@@ -426,7 +427,9 @@ def run_splits(
         threads = threads_per_process(jobs)
         worker_cfg = cfg if cfg.num_threads is not None else _with_threads(cfg, threads)
         calls = [(s, *common, worker_cfg, cache, 1) for s in splits]
-        for i, res in enumerate(in_processes(carrying_store(_run_one), calls, processes=jobs, threads=threads)):
+        splits_run = in_processes(carrying_store(_run_one), calls, processes=jobs, threads=threads,
+                                  local=True)  # a split reads its recordings by path: here
+        for i, res in enumerate(splits_run):
             results[i] = res
             bar.update()
     else:
