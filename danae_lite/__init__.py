@@ -44,6 +44,7 @@ part of the package: ``tools/``.
 * :mod:`~danae_lite.plots`  one plotting style for angles and methods
 * :mod:`~danae_lite.paper.danae`  the paper's DANAE as one estimator (a network per angle and seed)
 * :mod:`~danae_lite.paper.pipeline`  the paper's run: KF -> DANAE -> Tables 1-2 and Figures 1-2
+* :mod:`~danae_lite.paper.reproduction`  its results: the per-seed study, the scores, the tables and files
 * :mod:`~danae_lite.paper.figures`  the paper's figures recreated
 
 **Research: past the paper** (``research/``)

@@ -11,7 +11,7 @@ The command parses arguments, resolves the data (:mod:`~danae_lite.data.experime
 :func:`danae_lite.paper.pipeline.reproduce`, the same function the book's chapters call: the
 paper's KF on every recording -> one DANAE per angle and seed -> the paper's metrics
 (:mod:`~danae_lite.evaluate.metrics`) -> the paper's figure (:mod:`~danae_lite.paper.figures`). It writes
-into ``--out`` (:meth:`danae_lite.paper.pipeline.Reproduction.write`, plus ``run.json``):
+into ``--out`` (:meth:`danae_lite.paper.reproduction.Reproduction.write`, plus ``run.json``):
 
 ``metrics.json``
     ``{"experiment", "data", "train", "test", "seeds", "kf", "danae", "paper", "seconds"}``;
@@ -61,7 +61,7 @@ from .data.oxiod_motions import FAST_MOTION_RECORDINGS
 
 if TYPE_CHECKING:
     from .runtime import RunSettings
-    from .paper.pipeline import Reproduction
+    from .paper.reproduction import Reproduction
     from .danae.train_types import TrainConfig
 
 __all__ = ["main", "build_parser"]
@@ -77,10 +77,10 @@ LEADERBOARD_ONLY = ("broad",)
 
 
 def __getattr__(name: str) -> Any:
-    """``CSV_COLUMNS`` is :data:`danae_lite.paper.pipeline.CSV_COLUMNS`, imported on first use (the
+    """``CSV_COLUMNS`` is :data:`danae_lite.paper.reproduction.CSV_COLUMNS`, imported on first use (the
     pipeline imports torch, which ``--help`` does not need)."""
     if name == "CSV_COLUMNS":
-        from .paper.pipeline import CSV_COLUMNS
+        from .paper.reproduction import CSV_COLUMNS
 
         return CSV_COLUMNS
     raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

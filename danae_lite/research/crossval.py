@@ -382,6 +382,33 @@ def _pretrain(splits: Sequence[Split], name: str, data: str, aligned: bool, meth
         extra=[copy.deepcopy(m) for m in extra], seeds=seeds, train_config=train_config)], cache=cache, jobs=jobs)
 
 
+def _each_split(splits: Sequence[Split], common: tuple[Any, ...], cfg: TrainConfig,
+                cache: str | os.PathLike[str] | None, jobs: int, progress: bool) -> list[Any]:
+    """:func:`_run_one` of every split, in order: with ``jobs`` > 1 in worker processes on this
+    machine (a split reads its recordings by path) after the networks of every split were
+    trained together (:func:`_pretrain`), else one after the other."""
+    if progress:  # the notebook widget when available
+        from tqdm.auto import tqdm
+    else:
+        from tqdm import tqdm
+
+    bar = tqdm(total=len(splits), desc=f"{common[0]} splits", unit="split", disable=not progress)
+    if jobs > 1 and len(splits) > 1:
+        _pretrain(splits, *common, cfg, cache, jobs)
+        threads = threads_per_process(jobs)
+        worker_cfg = cfg if cfg.num_threads is not None else _with_threads(cfg, threads)
+        calls = [(s, *common, worker_cfg, cache, 1) for s in splits]
+        runs = in_processes(carrying_store(_run_one), calls, processes=jobs, threads=threads, local=True)
+    else:
+        runs = (_run_one(s, *common, cfg, cache, jobs) for s in splits)
+    results = []
+    for res in runs:
+        results.append(res)
+        bar.update()
+    bar.close()
+    return results
+
+
 def run_splits(
     splits: Sequence[Split],
     *,
@@ -410,33 +437,12 @@ def run_splits(
     jobs : worker processes: over splits, or over one split's networks when there is one split.
     progress : progress bar over the splits.
     """
-    if progress:  # the notebook widget when available
-        from tqdm.auto import tqdm
-    else:
-        from tqdm import tqdm
-
     if not splits:
         raise ValueError("no splits to run")
     t0 = time.perf_counter()
     cfg = train_config or TrainConfig()
-    results: list[Any] = [None] * len(splits)
     common = (name, data, aligned, tuple(methods), tuple(extra), tuple(int(s) for s in seeds))
-    bar = tqdm(total=len(splits), desc=f"{name} splits", unit="split", disable=not progress)
-    if jobs > 1 and len(splits) > 1:
-        _pretrain(splits, *common, cfg, cache, jobs)
-        threads = threads_per_process(jobs)
-        worker_cfg = cfg if cfg.num_threads is not None else _with_threads(cfg, threads)
-        calls = [(s, *common, worker_cfg, cache, 1) for s in splits]
-        splits_run = in_processes(carrying_store(_run_one), calls, processes=jobs, threads=threads,
-                                  local=True)  # a split reads its recordings by path: here
-        for i, res in enumerate(splits_run):
-            results[i] = res
-            bar.update()
-    else:
-        for i, s in enumerate(splits):
-            results[i] = _run_one(s, *common, cfg, cache, jobs)
-            bar.update()
-    bar.close()
+    results = _each_split(splits, common, cfg, cache, jobs, progress)
     rows = [r for res in results for r in res[0]]
     trials = [r for res in results for r in res[1]]
     params = [r for res in results for r in res[2]]

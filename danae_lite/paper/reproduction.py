@@ -1,0 +1,331 @@
+"""The results of the paper's experiment (:func:`danae_lite.paper.pipeline.reproduce`): the
+per-seed study, the scores by the leaderboard's rule, and the :class:`Reproduction` with its
+tables (Table 1 or 2 beside the paper's values), files and figure (Figure 1 or 2).
+"""
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Iterable, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+from numpy.typing import NDArray
+
+from . import figures
+from .. import plots
+from ..angles import ANGLES, wrap
+from ..data.experiments import Experiment
+from ..data.groundtruth import clean_mask
+from ..danae.train_types import TrainConfig, TrainResult
+from ..evaluate import metrics
+from ..evaluate.scoring import SUBSETS, plain, score_rows
+from ..kalman.model import KFConfig
+from .figures import PAPER_FIGURES, PaperFigure
+
+CSV_COLUMNS: tuple[str, ...] = ("method", "angle", "mean_dev", "max_dev", "rmse", "rmse_std",
+                                "paper_mean_dev", "paper_max_dev", "paper_rmse")
+"""Columns of :meth:`Reproduction.metrics_frame` (``metrics.csv``); metrics in rad."""
+
+
+MetricDict = dict[str, float]
+"""``{"mean_dev", "max_dev", "rmse"}`` [rad] (DANAE: also ``"rmse_std"``)."""
+
+
+@dataclass
+class SeedStudy:
+    """DANAE trained per angle and per seed, evaluated on the test recordings."""
+
+    results: dict[tuple[str, int], TrainResult]
+    """Trained networks, keyed by ``(angle, seed)``."""
+    predictions: dict[tuple[str, int, str], dict[str, NDArray[np.float64]]]
+    """``(angle, seed, stitch) -> {test name: denoised angle (N,) [rad]}``."""
+    table: pd.DataFrame
+    """Long table: one row per test recording, angle, seed and method with the paper's metrics."""
+
+    def rmse(self) -> pd.DataFrame:
+        """RMSE [rad] per method (rows) and angle (columns), mean over seeds and test recordings."""
+        return self.table.pivot_table(index="method", columns="angle", values="rmse", aggfunc="mean")
+
+    def reduction(self, method: str = "danae (overlap)") -> pd.DataFrame:
+        """RMSE reduction of ``method`` over the KF [%] per angle and seed (rows), with mean and std."""
+        t = self.table
+        kf = t[t.method == "kf"].set_index(["test", "angle", "seed"])["rmse"]
+        dn = t[t.method == method].set_index(["test", "angle", "seed"])["rmse"]
+        red = metrics.reduction_pct(dn, kf).rename("reduction [%]").reset_index()
+        out = red.pivot_table(index="seed", columns="angle", values="reduction [%]", aggfunc="mean")
+        agg = {a: metrics.spread(out[a]) for a in out.columns}
+        out.loc["mean"] = {a: m for a, (m, _) in agg.items()}
+        out.loc["std"] = {a: sd for a, (_, sd) in agg.items()}
+        return out
+
+
+def _joined(arrays: Iterable[NDArray[np.float64]]) -> NDArray[np.float64]:
+    return np.concatenate([np.asarray(a, dtype=float) for a in arrays])
+
+
+def paper_values(experiment: str, angles: Sequence[str]) -> dict[str, dict[str, MetricDict]] | None:
+    """The paper's Table 1 (``"oxiod"``) or 2 (``"ucs"``) as ``{method: {angle: metrics}}`` [rad].
+
+    Angles the paper does not report are left out; None when it reports none of ``angles``.
+    """
+    if experiment not in metrics.PAPER:
+        return None
+    out: dict[str, dict[str, MetricDict]] = {}
+    for method, rows in metrics.PAPER[experiment].items():
+        per_angle = {a: {m: rows[m][a] for m in metrics.METRICS} for a in angles}
+        out[method] = {a: {m: float(v) for m, v in vals.items()}  # type: ignore[arg-type]
+                       for a, vals in per_angle.items() if all(v is not None for v in vals.values())}
+    return out if any(out.values()) else None
+
+
+SCORE_COLUMNS: tuple[str, ...] = ("method", "samples", "angle", "mean_dev", "max_dev", "rmse", "rmse_std", "n")
+"""Columns of :attr:`Scores.table`: method "kf" or "danae", samples "all" or "clean", metrics
+[rad] (mean over seeds; ``rmse_std`` their sample std, NaN with one seed and for the KF), ``n``
+the sample count."""
+
+
+@dataclass
+class Scores:
+    """The paper's metrics of a reproduction, by the leaderboard's rule
+    (:func:`danae_lite.evaluate.scoring.score_rows`: all test samples taken together, errors wrapped,
+    mean over seeds), on all samples and on the clean ones."""
+
+    table: pd.DataFrame
+    """:data:`SCORE_COLUMNS`, one row per method, subset and angle."""
+    clean: dict[str, NDArray[np.bool_]]
+    """Clean ground-truth mask (:func:`danae_lite.data.groundtruth.clean_mask`) per recording name,
+    training and test."""
+    predictions: dict[str, dict[str, list[NDArray[np.float64]]]]
+    """``{"kf" | "danae": {test recording: [(N, 3) roll, pitch, yaw [rad], one per seed]}}`` as
+    scored: the KF's yaw wrapped to [-π, π), DANAE's NaN for an angle without a network."""
+
+    def blocks(self, samples: str, angles: Sequence[str]) -> tuple[dict[str, MetricDict], dict[str, MetricDict]]:
+        """``(kf, danae)``: ``{angle: {mean_dev, max_dev, rmse}}`` [rad] on ``samples`` ("all" or
+        "clean"), DANAE's also with ``rmse_std``."""
+        rows = self.table[self.table.samples == samples].set_index(["method", "angle"])
+        out = {m: {a: {k: float(rows.loc[(m, a), k]) for k in metrics.METRICS} for a in angles}
+               for m in ("kf", "danae")}
+        for a in angles:
+            out["danae"][a]["rmse_std"] = float(rows.loc[("danae", a), "rmse_std"])
+        return out["kf"], out["danae"]
+
+
+def score(exp: Experiment, estimates: dict[str, NDArray[np.float64]], study: SeedStudy,
+          angles: Sequence[str], seeds: Sequence[int]) -> Scores:
+    """Score the paper's KF (``estimates``, its yaw wrapped) and DANAE (the overlap predictions
+    of ``study``, one per seed) on ``exp.test``, on all and on the clean samples."""
+    clean = {r.name: clean_mask(r) for r in [*exp.train, *exp.test]}
+    preds: dict[str, dict[str, list[NDArray[np.float64]]]] = {"kf": {}, "danae": {}}
+    for r in exp.test:
+        kf = estimates[r.name].copy()
+        kf[:, 2] = wrap(kf[:, 2])
+        preds["kf"][r.name] = [kf]
+        preds["danae"][r.name] = []
+        for seed in seeds:
+            e = np.full((len(r), 3), np.nan)
+            for a in angles:
+                e[:, ANGLES.index(a)] = study.predictions[(a, seed, "overlap")][r.name]
+            preds["danae"][r.name].append(e)
+    truth = np.concatenate([r.euler for r in exp.test])
+    ok = np.concatenate([clean[r.name] for r in exp.test])
+    rows = []
+    for method, per_test in preds.items():
+        n_seeds = len(per_test[exp.test[0].name])
+        joined = [np.concatenate([per_test[r.name][s] for r in exp.test]) for s in range(n_seeds)]
+        rows += [{"method": method, **row} for row in score_rows(joined, truth, ok, angles)]
+    return Scores(table=pd.DataFrame(rows, columns=list(SCORE_COLUMNS)), clean=clean, predictions=preds)
+
+
+@dataclass
+class Reproduction:
+    """The paper's experiment on one dataset: KF, DANAE per angle and seed, metrics, figure.
+
+    Made by :func:`reproduce`. All metrics are in rad, computed on all samples of all test
+    recordings taken together with errors wrapped to [-pi, pi); DANAE uses the overlap-average
+    reconstruction (every sample covered).
+    """
+
+    experiment: Experiment
+    """The recordings used (``experiment.name``, ``.data``, ``.train``, ``.test``, ``.note``)."""
+    angles: tuple[str, ...]
+    """Angles evaluated, e.g. ("roll", "pitch", "yaw")."""
+    seeds: list[int]
+    """Training seeds; one network per angle and seed."""
+    estimates: dict[str, NDArray[np.float64]]
+    """KF estimates ``{recording name: (N, 3) roll, pitch, yaw [rad]}`` (yaw unbounded)."""
+    study: SeedStudy
+    """All networks, their test predictions (stitch ``"overlap"``) and the per-recording table."""
+    kf: dict[str, MetricDict]
+    """``{angle: {mean_dev, max_dev, rmse}}`` of the KF [rad]."""
+    danae: dict[str, MetricDict]
+    """``{angle: {mean_dev, max_dev, rmse, rmse_std}}`` of DANAE, mean (and RMSE std) over seeds [rad];
+    ``rmse_std`` is NaN with one seed (:func:`danae_lite.evaluate.metrics.spread`)."""
+    paper: dict[str, dict[str, MetricDict]] | None
+    """The paper's values in the layout of ``kf``/``danae`` under keys "kf" and "danae", or None."""
+    seconds: dict[str, float]
+    """Wall time [s]: ``kf`` (filter on every recording), ``train`` (training and inference),
+    ``total`` (the whole :func:`reproduce` call)."""
+    config: TrainConfig
+    """Training settings shared by every network (the seed is replaced per network)."""
+    kf_config: KFConfig
+    """Filter settings."""
+    scores: Scores
+    """The metrics on all and on clean test samples, the clean masks and the test predictions."""
+
+    @property
+    def leaderboard(self) -> Scores:
+        """:attr:`scores`, under the name of the engine that once produced them (chapter 4 reads
+        ``rep.leaderboard.clean``)."""
+        return self.scores
+
+    def metrics_on(self, samples: str = "all") -> tuple[dict[str, MetricDict], dict[str, MetricDict]]:
+        """``(kf, danae)`` as :attr:`kf` / :attr:`danae`, on ``"all"`` test samples (those
+        attributes) or on the ``"clean"`` ones (ground-truth glitches of
+        :mod:`danae_lite.data.groundtruth` left out)."""
+        if samples not in SUBSETS:
+            raise ValueError(f"samples={samples!r}: choose 'all' or 'clean'")
+        if samples == "all":
+            return self.kf, self.danae
+        return self.scores.blocks("clean", self.angles)
+
+    @property
+    def data(self) -> str:
+        """``"real"`` or ``"simulated"``."""
+        return self.experiment.data
+
+    @property
+    def train(self) -> list[str]:
+        """Names of the training recordings."""
+        return [r.name for r in self.experiment.train]
+
+    @property
+    def test(self) -> list[str]:
+        """Names of the test recordings."""
+        return [r.name for r in self.experiment.test]
+
+    def to_json(self) -> dict[str, Any]:
+        """The content of ``metrics.json``: ``{"experiment", "data", "train", "test", "seeds",
+        "kf", "danae", "paper", "seconds"}`` (see :mod:`danae_lite.cli`)."""
+        return {
+            "experiment": self.experiment.name,
+            "data": self.data,
+            "train": self.train,
+            "test": self.test,
+            "seeds": list(self.seeds),
+            "kf": plain(self.kf),
+            "danae": plain(self.danae),
+            "paper": plain(self.paper),
+            "seconds": {k: float(self.seconds[k]) for k in ("kf", "train", "total")},
+        }
+
+    def metrics_frame(self) -> pd.DataFrame:
+        """The table of ``metrics.csv``: one row per method ("kf", "danae") and angle, columns
+        :data:`CSV_COLUMNS` [rad]; ``rmse_std`` is NaN for the KF, paper values NaN where absent."""
+        rows = []
+        for method, block in (("kf", self.kf), ("danae", self.danae)):
+            for angle, vals in block.items():
+                ref = (self.paper or {}).get(method, {}).get(angle, {})
+                rows.append({"method": method, "angle": angle, **{m: vals[m] for m in metrics.METRICS},
+                             "rmse_std": vals.get("rmse_std", np.nan),
+                             **{f"paper_{m}": ref.get(m, np.nan) for m in metrics.METRICS}})
+        return pd.DataFrame(rows, columns=list(CSV_COLUMNS))
+
+    def comparison(self, samples: str = "all") -> pd.DataFrame:
+        """Our numbers in the layout of the paper's Table 1/2, next to the paper's [rad], on
+        ``"all"`` test samples (as the paper) or on the ``"clean"`` ones (:meth:`metrics_on`).
+
+        Rows ``(method, metric)`` with method "KF"/"DANAE" and metric in
+        :data:`~danae_lite.evaluate.metrics.METRICS`; columns ``(angle, source)`` with source "ours"
+        (DANAE: mean over seeds), "seed std" (DANAE RMSE only: sample std over seeds, NaN with
+        one seed; NaN elsewhere) and "paper" (NaN where the paper gives no value).
+        """
+        blocks = {}
+        kf, danae = self.metrics_on(samples)
+        for label, method, vals in (("KF", "kf", kf), ("DANAE", "danae", danae)):
+            ours = pd.DataFrame(vals).loc[list(metrics.METRICS), list(self.angles)]
+            table = metrics.compare_with_paper(ours, self.experiment.name, method)
+            for angle in self.angles:
+                table[(angle, "seed std")] = np.nan
+                if method == "danae":
+                    table.loc["rmse", (angle, "seed std")] = vals[angle]["rmse_std"]
+            blocks[label] = table[[(a, s) for a in self.angles for s in ("ours", "seed std", "paper")]]
+        return pd.concat(blocks, names=["method"])
+
+    def rmse_reduction(self) -> pd.DataFrame:
+        """RMSE reduction of DANAE over the KF [%]: ``100 (1 - rmse_danae / rmse_kf)``.
+
+        Rows "ours" (DANAE RMSE = mean over seeds) and "paper" (from its table); columns the
+        angles and their "mean".
+        """
+        ours = pd.Series({a: metrics.reduction_pct(self.danae[a]["rmse"], self.kf[a]["rmse"]) for a in self.angles})
+        paper = metrics.paper_rmse_reduction(self.experiment.name).reindex(list(self.angles))
+        out = pd.DataFrame({"ours": ours, "paper": paper}).T
+        out["mean"] = out.mean(axis=1)
+        out.columns.name = "RMSE reduction [%]"
+        return out
+
+    def test_series(self, angle: str, seed: int | None = None) -> pd.DataFrame:
+        """Ground truth, KF and DANAE (network ``seed``, default the first) of one angle on all
+        test recordings joined: columns ``ground_truth``, ``kf`` (unbounded for yaw), ``danae``
+        [rad]; one row per test sample, in the order of ``experiment.test``."""
+        k = ANGLES.index(angle)
+        seed = self.seeds[0] if seed is None else int(seed)
+        recs = self.experiment.test
+        return pd.DataFrame({
+            "ground_truth": _joined(r.euler[:, k] for r in recs),
+            "kf": _joined(self.estimates[r.name][:, k] for r in recs),
+            "danae": _joined(self.study.predictions[(angle, seed, "overlap")][r.name] for r in recs),
+        })
+
+    def _figure_spec(self, spec: PaperFigure | None) -> PaperFigure:
+        return spec if spec is not None else PAPER_FIGURES[self.experiment.name]
+
+    def figure_series(self, spec: PaperFigure | None = None, seed: int | None = None) -> pd.DataFrame:
+        """The samples of the paper's figure on the first test recording.
+
+        ``spec`` (default: the experiment's figure in :data:`danae_lite.paper.figures.PAPER_FIGURES`)
+        gives the angle and the authors' sample range (:func:`~danae_lite.paper.figures.figure_window`
+        shortens it on short recordings); ``seed`` picks the network (default: the first).
+        Returns a :func:`~danae_lite.paper.figures.figure_series` table: ``time_s`` [s],
+        ``ground_truth``, ``kf``, ``danae`` [rad], indexed by test sample.
+        """
+        spec = self._figure_spec(spec)
+        seed = self.seeds[0] if seed is None else int(seed)
+        rec = self.experiment.test[0]
+        k = ANGLES.index(spec.angle)
+        start, stop = figures.figure_window(spec, len(rec))
+        return figures.figure_series(rec.time, rec.euler[:, k], self.estimates[rec.name][:, k],
+                                     self.study.predictions[(spec.angle, seed, "overlap")][rec.name], start, stop)
+
+    def plot_figure(self, spec: PaperFigure | None = None, seed: int | None = None) -> plt.Figure:
+        """The paper's figure recreated (KF above, DANAE below, each against ground truth)."""
+        spec = self._figure_spec(spec)
+        seed = self.seeds[0] if seed is None else int(seed)
+        series = self.figure_series(spec, seed)
+        title = (f"Figure {spec.number} recreated: {spec.angle}, KF (above) and DANAE (below, seed {seed}) vs "
+                 f"ground truth\n{self.test[0]} ({self.data}), test samples {series.index[0]}-{series.index[-1]}")
+        return figures.plot_kf_danae(series, spec.angle, title=title)
+
+    def write(self, out_dir: str | os.PathLike[str]) -> list[Path]:
+        """Write ``metrics.json``, ``metrics.csv``, ``seed_table.csv`` and the paper's figure
+        (``figureN_<angle>.csv`` with its samples, ``figureN_<angle>.png``) into ``out_dir``
+        (created if needed); return the paths written, ``metrics.json`` first."""
+        out = Path(out_dir)
+        out.mkdir(parents=True, exist_ok=True)
+        spec = self._figure_spec(None)
+        paths = [out / "metrics.json", out / "metrics.csv", out / "seed_table.csv",
+                 out / f"{spec.filename}.csv", out / f"{spec.filename}.png"]
+        paths[0].write_text(json.dumps(self.to_json(), indent=2) + "\n")
+        self.metrics_frame().to_csv(paths[1], index=False)
+        self.study.table.to_csv(paths[2], index=False)
+        self.figure_series(spec).to_csv(paths[3], index=False)
+        plots.use_style()
+        fig = self.plot_figure(spec)
+        fig.savefig(paths[4])
+        plt.close(fig)
+        return paths
