@@ -35,10 +35,8 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .gains import (GainSequence, SteadyState, gain_sequence, steady_state,
-                    use_block_path)
-from .model import (AUTHORS_DT, KFConfig, accel_tilt, check_dt, euler_rates,
-                    mag_heading, system_matrices, unit_rows)
+from .gains import GainSequence, gain_sequence, use_block_path
+from .model import KFConfig, accel_tilt, check_dt, unit_rows
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..data.recording import Recording

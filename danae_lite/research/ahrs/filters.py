@@ -9,7 +9,7 @@ Every filter here takes the same inputs and returns the same output, so that the
   used), and the sample rate ``fs`` [Hz];
 * output: quaternions (N, 4), scalar-last ``[x, y, z, w]``, body -> reference with the
   reference frame **x = magnetic north, y = west, z = up** (NWU), the frame of the
-  simulator and of the KF's heading (:func:`danae_lite.kalman.filter.mag_heading`).
+  simulator and of the KF's heading (:func:`danae_lite.kalman.model.mag_heading`).
 
 Each library has its own units and frame; the wrappers convert (checked on noise-free
 simulated recordings, where every wrapper returns the true orientation to within 0.01 rad):
