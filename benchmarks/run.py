@@ -66,7 +66,7 @@ from danae_lite.kalman.model import KFConfig
 from danae_lite.data.simulate import simulate
 from danae_lite.danae.model import DanaePaper
 from danae_lite.danae.predict import predict
-from danae_lite.danae.train import _default_threads, train
+from danae_lite.danae.train import train
 from danae_lite.danae.train_types import TrainConfig
 
 KF_TARGET = 250_000.0
@@ -158,7 +158,7 @@ def machine_info() -> dict[str, Any]:
         "cpu_model": cpu_model(),
         "isa": cpu_isa(),
         "ram_gib": ram_gib(),
-        "torch_threads_default": _default_threads(),
+        "torch_threads_default": torch.get_num_threads(),
         "cuda_available": bool(torch.cuda.is_available()),
         "cuda_device": torch.cuda.get_device_name(0) if torch.cuda.is_available() else None,
         "libraries": {m: _version(m) for m in ("imufusion", "vqf", "AHRS")},
@@ -168,7 +168,7 @@ def machine_info() -> dict[str, Any]:
 def device_label(device: str) -> str:
     if torch.device(device).type == "cuda":
         return f"cuda ({torch.cuda.get_device_name(torch.device(device))})"
-    return f"cpu ({usable_cores()} cores, torch {_default_threads()} thread(s), {cpu_model()})"
+    return f"cpu ({usable_cores()} cores, torch {torch.get_num_threads()} thread(s), {cpu_model()})"
 
 
 def best_of(fn: Callable[[], object], repeats: int) -> tuple[float, float]:
@@ -270,7 +270,7 @@ def bench_training(x: np.ndarray, y: np.ndarray, devices: Sequence[str], sz: dic
             out[device][str(batch)] = dict(batch_size=batch, steps=res.steps, seconds=res.seconds,
                                            steps_per_s=sps, windows_per_s=sps * batch,
                                            call_seconds=total, n_train_windows=res.n_train_windows,
-                                           threads=_default_threads() if device == "cpu" else None)
+                                           threads=torch.get_num_threads() if device == "cpu" else None)
             log(f"  {device:<5} batch {batch:>3}: {sps:8.2f} steps/s  {sps * batch:9,.0f} windows/s  "
                 f"({res.steps} steps in {res.seconds:.1f} s; whole call {total:.1f} s)")
             if keep is None and batch == 16:
@@ -405,27 +405,6 @@ def paper_stream(net: Any, x: np.ndarray, n: int, warmup: int) -> dict[str, Any]
                 delay_samples=L - 1, delay_ms=(L - 1) * PERIOD_MS)
 
 
-def bench_predict_paths(result: Any, x: np.ndarray, n: int) -> dict[str, Any]:
-    """``predict`` over ``n`` samples with the package's convolutions and with torch's own, side
-    by side in one run on this CPU (best of 2 each, alternated), and how far apart their
-    predictions are [rad] (float32 rounding: the same sums in another order)."""
-    paths = {"gemm": "matmul", "library": "torch"}
-    times: dict[str, list[float]] = {k: [] for k in paths}
-    preds: dict[str, np.ndarray] = {}
-    for _ in range(2):  # alternated, so that a slow minute of the machine hits both
-        for key, conv in paths.items():
-            t0 = time.perf_counter()
-            preds[key] = predict(result, x[:n], convolutions=conv)
-            times[key].append(time.perf_counter() - t0)
-    gemm_s, lib_s = min(times["gemm"]), min(times["library"])
-    diff = float(np.abs(preds["gemm"] - preds["library"]).max())
-    out = dict(samples=n, gemm_seconds=gemm_s, library_seconds=lib_s, gemm_over_library=gemm_s / lib_s,
-               max_abs_diff=diff, faster="library" if lib_s < gemm_s else "gemm")
-    log(f"  predict over {n:,} samples: matrix-product convolutions {gemm_s:.2f} s, torch's own "
-        f"{lib_s:.2f} s (ratio {gemm_s / lib_s:.2f}; predictions within {diff:.1e})")
-    return out
-
-
 def bench_inference(result: Any, x: np.ndarray, y: np.ndarray, sz: dict[str, Any]) -> dict[str, Any]:
     out: dict[str, Any] = {}
     # whole recording, batched, on the training device
@@ -435,7 +414,7 @@ def bench_inference(result: Any, x: np.ndarray, y: np.ndarray, sz: dict[str, Any
     sec = time.perf_counter() - t0
     out["predict"] = dict(samples=len(xp), device=result.device, seconds=sec, ms_total=sec * 1e3,
                           us_per_sample=sec * 1e6 / len(xp), samples_per_s=len(xp) / sec,
-                          threads=_default_threads() if result.device == "cpu" else None)
+                          threads=torch.get_num_threads() if result.device == "cpu" else None)
     log(f"  predict (batched, {result.device}): {sec * 1e3:,.0f} ms for {len(xp):,} samples = "
         f"{sec * 1e6 / len(xp):.1f} µs/sample")
 
@@ -445,7 +424,6 @@ def bench_inference(result: Any, x: np.ndarray, y: np.ndarray, sz: dict[str, Any
     predict(result, x[:n100])
     out["predict_100k"] = dict(samples=n100, seconds=time.perf_counter() - t0, device=result.device)
     log(f"  predict over {n100:,} samples: {out['predict_100k']['seconds']:.2f} s")
-    out["predict_paths"] = bench_predict_paths(result, x, n100)
 
     # streaming with the paper network: one 20-sample window per new sample
     ps = paper_stream(result.model, x, sz["stream_n"], sz["stream_warmup"])
@@ -552,8 +530,6 @@ def summary(r: dict[str, Any]) -> dict[str, Any]:
     s["train_over_matmul_peak"] = th["train_over_peak"]
     s["paper_epoch_50k_s"] = th["epoch_call_seconds"]
     s["predict_100k_s"] = inf["predict_100k"]["seconds"]
-    s["predict_100k_library_conv_s"] = inf["predict_paths"]["library_seconds"]
-    s["predict_gemm_over_library_conv"] = inf["predict_paths"]["gemm_over_library"]
     s["danae_predict_ms_total"] = inf["predict"]["ms_total"]
     s["danae_predict_us_per_sample"] = inf["predict"]["us_per_sample"]
     s["danae_predict_samples"] = inf["predict"]["samples"]
@@ -598,10 +574,6 @@ def table(r: dict[str, Any]) -> str:
                  f"{th['epoch_call_seconds']:.1f} s", f"{th['epoch_steps']} steps, {th['checks']} checks"))
     rows.append((f"predict over {inf['predict_100k']['samples']:,} samples", f"{inf['predict_100k']['seconds']:.2f} s",
                  "every stride-1 window, overlap-averaged"))
-    pp = inf["predict_paths"]
-    rows.append((f"predict, {pp['samples']:,} samples: torch's own convolutions", f"{pp['library_seconds']:.2f} s",
-                 f"matrix products {pp['gemm_seconds']:.2f} s (ratio {pp['gemm_over_library']:.2f}); "
-                 f"predictions within {pp['max_abs_diff']:.0e}"))
     p = inf["predict"]
     rows.append((f"DANAE predict, whole recording ({p['device']})", f"{p['ms_total']:,.0f} ms",
                  f"{p['us_per_sample']:.1f} µs/sample, {p['samples']:,} samples"))
@@ -631,7 +603,6 @@ HEADLINE = [
     ("train_bare_windows_per_s", "bare training step, batch 16 [windows/s]", "{:,.0f}"),
     ("paper_epoch_50k_s", "paper epoch, 50k windows [s]", "{:.1f}"),
     ("predict_100k_s", "predict over 100k samples [s]", "{:.2f}"),
-    ("predict_100k_library_conv_s", "  the same with torch's own convolutions [s]", "{:.2f}"),
     ("danae_infer_ms_per_sample", "paper net streaming [ms/sample]", "{:.2f}"),
     ("denoiser_stream_ms_per_sample", "DANAE-res streaming [ms/sample]", "{:.3f}"),
     ("denoiser_stream_p99_ms", "  p99 [ms/sample]", "{:.3f}"),

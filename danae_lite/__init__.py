@@ -31,7 +31,8 @@ part of the package: ``tools/``.
 **DANAE** (``danae/``)
 
 * :mod:`~danae_lite.danae.windows`  windows and stitching
-* :mod:`~danae_lite.danae.model`  the DANAE networks; :mod:`~danae_lite.danae.gemm_conv` their convolutions as matrix products
+* :mod:`~danae_lite.danae.base`  what every DANAE network shares; :mod:`~danae_lite.danae.model` the authors' two
+* :mod:`~danae_lite.danae.causal`  the causal network, for on-line use
 * :mod:`~danae_lite.danae.seeding`  seeds and device; :mod:`~danae_lite.danae.train_types` the training settings and result
 * :mod:`~danae_lite.danae.train`  the one training loop; :mod:`~danae_lite.danae.checkpoints` one file per trained network
 * :mod:`~danae_lite.danae.networks`  many trainings at once: worker processes and the network cache

@@ -29,14 +29,11 @@ The command that re-executes the chapters and stores their outputs is
 """
 from __future__ import annotations
 
-import random
 import re
 import string
-import sys
 from typing import Any
 
-import numpy as np
-
+from .danae.seeding import seed_everything
 from .runtime import DEFAULT_SEED, RunSettings
 from .research import memo
 
@@ -53,10 +50,7 @@ def setup(seed: int = DEFAULT_SEED, *, verbose: bool = True) -> RunSettings:
     from . import plots
 
     plots.use_style()
-    random.seed(seed)
-    np.random.seed(seed)
-    if "torch" in sys.modules:  # never imported here: chapters 1-2 run without torch
-        sys.modules["torch"].manual_seed(seed)
+    seed_everything(seed)  # torch too once loaded: chapters 1-2 run without it
     _RECORDED.clear()
     cfg = RunSettings.from_env(seed=seed)
     memo.use_store(cfg.run_store)

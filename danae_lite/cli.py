@@ -29,7 +29,7 @@ into ``--out`` (:meth:`danae_lite.paper.reproduction.Reproduction.write`, plus `
 ``run.json``
     How the run was made: the command, the data note, fast mode, training settings, device.
 ``models/`` (only with ``--save-models``)
-    One checkpoint per angle and seed (:func:`danae_lite.danae.train.save`).
+    One checkpoint per angle and seed (:func:`danae_lite.danae.checkpoints.save`).
 
 Metrics are computed on all samples of all test recordings taken together, with errors
 wrapped to [-pi, pi). DANAE numbers use the overlap-average reconstruction (every sample is
@@ -513,7 +513,7 @@ def folds(args: argparse.Namespace) -> int:
 
 
 def _save_models(rep: Reproduction, folder: Path) -> list[Path]:
-    """One checkpoint per angle and seed (:func:`danae_lite.danae.train.save`)."""
+    """One checkpoint per angle and seed (:func:`danae_lite.danae.checkpoints.save`)."""
     from .danae.checkpoints import save
 
     exp = rep.experiment

@@ -270,7 +270,7 @@ class RunSettings:
         return fast if self.fast else full
 
     def train_config(self, base: "TrainConfig | None" = None, **overrides: Any) -> "TrainConfig":
-        """``base`` (default the paper's :class:`~danae_lite.danae.train.TrainConfig`) with
+        """``base`` (default the paper's :class:`~danae_lite.danae.train_types.TrainConfig`) with
         ``overrides``, this run's device, and in fast mode at most :data:`FAST_EPOCHS` epochs
         and :data:`FAST_MAX_STEPS` steps per network."""
         from .danae.train_types import TrainConfig

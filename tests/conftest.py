@@ -196,3 +196,20 @@ def assert_close_scaled(actual, desired, rtol: float) -> None:
     desired = np.asarray(desired, dtype=float)
     scale = float(np.abs(desired).max()) if desired.size else 0.0
     np.testing.assert_allclose(actual, desired, rtol=rtol, atol=rtol * scale)
+
+
+def stored_networks(folder: Path) -> list[tuple[str, int, str]]:
+    """(tag, seed, key) of each network kept in a cache folder (the items of its joblib store,
+    danae_lite.danae.networks.NetworkCache), sorted."""
+    import joblib
+
+    found = []
+    for f in Path(folder).glob("networks/*/output.pkl"):
+        meta = joblib.load(f)["metadata"]
+        found.append((str(meta["tag"]), int(meta["seed"]), f.parent.name))
+    return sorted(found)
+
+
+def network_items(folder: Path) -> list[Path]:
+    """The stored files of the networks kept in a cache folder, sorted."""
+    return sorted(Path(folder).glob("networks/*/output.pkl"))

@@ -306,7 +306,7 @@ def test_a_run_counts_the_networks_it_trained_and_loaded(tmp_path):
     src = write_notebook(
         tmp_path / "nbs" / "nets.ipynb", "# Networks",
         "from danae_lite.book import setup\ncfg = setup(verbose=False)",
-        "import numpy as np\nfrom danae_lite.danae import networks\nfrom danae_lite.danae.train import TrainConfig\n"
+        "import numpy as np\nfrom danae_lite.danae import networks\nfrom danae_lite.danae.train_types import TrainConfig\n"
         "x = [np.sin(np.linspace(0.0, 20.0, 300))]\n"
         "nets = networks.train_networks({'roll': x}, {'roll': x}, TrainConfig(max_steps=2, num_threads=1), (0, 1),"
         " cache=cfg.cache)",
@@ -318,7 +318,7 @@ def test_a_run_counts_the_networks_it_trained_and_loaded(tmp_path):
                          out_dir=tmp_path / "b", progress=False)
     assert first[["networks_trained", "networks_cached"]].values.tolist() == [[2, 0]]  # cold
     assert again[["networks_trained", "networks_cached"]].values.tolist() == [[0, 2]]  # warm
-    assert len(list((cache / "fast").glob("*.pt"))) == 2 and not (cache / "full").exists()
+    assert len(list((cache / "fast").glob("networks/*/output.pkl"))) == 2 and not (cache / "full").exists()
     warm_nb = nbformat.read(tmp_path / "b" / "nets.ipynb", as_version=4)
     record = execution_record(warm_nb)
     assert (record["networks_trained"], record["networks_cached"]) == (0, 2)

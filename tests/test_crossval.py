@@ -10,6 +10,8 @@ from danae_lite.evaluate import metrics
 from danae_lite.research.leaderboard import run_leaderboard
 from danae_lite.danae.train_types import TrainConfig
 
+from conftest import network_items
+
 
 @pytest.fixture(scope="module")
 def motions():
@@ -174,7 +176,7 @@ def test_splits_in_workers_train_their_networks_together_first(cv_res, motions, 
                               seeds=(0,), train_config=TrainConfig(max_steps=3, num_threads=1), progress=False,
                               cache=tmp_path, jobs=2)
     # 3 splits x 2 denoisers x (1 prediction network + 2 inner-fold gate networks)
-    assert pooled == [18] and len(list(tmp_path.glob("*.pt"))) == 18
+    assert pooled == [18] and len(network_items(tmp_path)) == 18
     pd.testing.assert_frame_equal(cv2.rows, cv_res.rows)
 
 

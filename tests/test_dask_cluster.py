@@ -9,6 +9,8 @@ from danae_lite.data import simulate
 from danae_lite.danae.train_types import TrainConfig
 from danae_lite.research import crossval
 
+from conftest import network_items
+
 distributed = pytest.importorskip("distributed")
 
 
@@ -42,7 +44,7 @@ def test_the_cluster_trains_the_networks_and_the_rows_are_those_of_this_machine(
     with distributed.get_task_stream(client=client) as stream:
         clustered = _run(splits, cache=tmp_path, jobs=2)  # networks on the cluster, splits here
     # 3 splits x 3 angles x 2 seeds, stored by this process as they came back
-    assert len(list(tmp_path.glob("*.pt"))) == 18
+    assert len(network_items(tmp_path)) == 18
     assert stream.data, "no task ran on the cluster"
     workers = {task["worker"] for task in stream.data}
     assert workers <= set(client.scheduler_info()["workers"])

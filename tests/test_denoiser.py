@@ -14,6 +14,8 @@ from danae_lite.data.simulate import simulate
 from danae_lite.danae.train_types import TrainConfig
 from danae_lite.research.variants import validation_block
 
+from conftest import network_items
+
 
 def test_filter_error_wraps_yaw_only():
     est = np.array([[0.1, 0.2, 3.1], [0.0, -0.1, -3.1]])
@@ -249,7 +251,7 @@ def test_a_pooled_leaderboard_trains_first_what_each_fit_then_finds(board, tmp_p
     again = run_leaderboard(exp, methods=["paper_kf", "vqf"], seeds=(0, 1), train_config=board.train_config,
                             progress=False, extra=extra, cache=tmp_path, jobs=2)
     # per method: the prediction network of each of 2 seeds, the gate's 2 inner-fold networks
-    assert pooled == [8] and len(list(tmp_path.glob("*.pt"))) == 8
+    assert pooled == [8] and len(network_items(tmp_path)) == 8
     for name in ("danae-res[vqf]", "res-paper"):
         for rec in exp.test:
             for a, b in zip(again.predictions[name][rec.name], board.predictions[name][rec.name]):

@@ -15,6 +15,8 @@ from danae_lite.research.leaderboard import run_leaderboard
 from danae_lite.research.baselines import is_method_name
 from danae_lite.research.registry import make_method
 
+from conftest import stored_networks
+
 # E[log chi^2_1] = psi(1/2) + log 2 = -gamma - log 2 (closed form)
 E_LOG_CHI2_1 = -np.euler_gamma - np.log(2.0)
 
@@ -101,10 +103,10 @@ def board(tmp_path_factory):
     cache = tmp_path_factory.mktemp("safe-cache")
     b = run_leaderboard(exp, methods=["vqf", "danae-res[vqf]"], seeds=(0, 1), train_config=cfg, progress=False,
                         cache=cache)
-    trained = sorted(p.name for p in cache.glob("*.pt"))
+    trained = stored_networks(cache)
     b2 = run_leaderboard(exp, methods=["vqf", "danae-res[vqf]"], seeds=(0, 1), train_config=cfg, progress=False,
                          cache=cache, extra=[DanaeSafe("vqf", policy=p) for p in POLICIES])
-    return b2, trained, sorted(p.name for p in cache.glob("*.pt"))
+    return b2, trained, stored_networks(cache)
 
 
 def test_builds_on_the_danae_res_of_the_context_without_new_networks(board):

@@ -15,6 +15,8 @@ from danae_lite.research.leaderboard import CSV_COLUMNS, run_leaderboard
 from danae_lite.data.simulate import simulate
 from danae_lite.danae.train_types import TrainConfig
 
+from conftest import stored_networks
+
 
 @pytest.fixture(scope="module")
 def board():
@@ -142,7 +144,7 @@ def test_the_papers_danae_lists_the_networks_its_fit_trains(tmp_path):
     jobs = Danae().network_jobs(ctx)
     assert [(j.tag, j.config.seed) for j in jobs] == [("danae-" + a, s) for a in ("roll", "pitch", "yaw") for s in (0, 2)]
     Danae().fit(ctx)
-    stored = sorted(p.name.rsplit("-", 1)[1][:-3] for p in tmp_path.glob("*.pt"))
+    stored = sorted(key for _, _, key in stored_networks(tmp_path))
     assert stored == sorted(networks.cache_key(j) for j in jobs)
     # validated on windows that tile the tails (the research networks' way) unless told otherwise
     assert {j.config.val_stride for j in jobs} == {20}

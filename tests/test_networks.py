@@ -12,6 +12,8 @@ from danae_lite.data import simulate
 from danae_lite.danae.predict import predict
 from danae_lite.danae.train_types import TrainConfig
 
+from conftest import network_items, stored_networks
+
 
 @pytest.fixture(scope="module")
 def recs():
@@ -69,7 +71,7 @@ def test_cache_reuses_the_network(recs, data, tmp_path):
     est, xs, ys = data
     cfg = TrainConfig(max_steps=5, num_threads=1)
     first = networks.train_networks({"pitch": xs["pitch"]}, {"pitch": ys["pitch"]}, cfg, (0,), cache=tmp_path)
-    assert len(list(tmp_path.glob("danae-pitch-seed0-*.pt"))) == 1
+    assert [(tag, seed) for tag, seed, _ in stored_networks(tmp_path)] == [("danae-pitch", 0)]
     again = networks.train_networks({"pitch": xs["pitch"]}, {"pitch": ys["pitch"]}, cfg, (0,), cache=tmp_path)
     a, b = first[("pitch", 0)], again[("pitch", 0)]
     assert b.steps == a.steps and b.best_step == a.best_step and b.history.equals(a.history)
@@ -78,7 +80,7 @@ def test_cache_reuses_the_network(recs, data, tmp_path):
     # another seed or other data is another entry
     networks.train_networks({"pitch": xs["pitch"]}, {"pitch": ys["pitch"]}, cfg, (1,), cache=tmp_path)
     networks.train_networks({"pitch": xs["pitch"][:1]}, {"pitch": ys["pitch"][:1]}, cfg, (0,), cache=tmp_path)
-    assert len(list(tmp_path.glob("*.pt"))) == 3
+    assert len(network_items(tmp_path)) == 3
 
 
 def test_no_cache_unless_one_is_passed(data, tmp_path, monkeypatch):
@@ -95,7 +97,7 @@ def test_cached_network_is_found_under_another_tag(data, tmp_path):
     one = {"roll": xs["roll"]}, {"roll": ys["roll"]}
     first = networks.train_networks(*one, cfg, (0,), tag="chapter-a", cache=tmp_path)
     again = networks.train_networks(*one, cfg, (0,), tag="chapter-b", cache=tmp_path)
-    assert [p.name.split("-seed")[0] for p in tmp_path.glob("*.pt")] == ["chapter-a-roll"]  # not trained twice
+    assert [tag for tag, _, _ in stored_networks(tmp_path)] == ["chapter-a-roll"]  # not trained twice
     assert _same(first[("roll", 0)], again[("roll", 0)])
 
 
@@ -103,7 +105,7 @@ def _job(xs, ys, cfg):
     return networks.NetworkJob(tuple(xs), tuple(ys), None, cfg, "t", {})
 
 
-@pytest.mark.parametrize("module", ["model", "gemm_conv", "train_types", "train", "windows", "seeding"])
+@pytest.mark.parametrize("module", ["base", "model", "causal", "train_types", "train", "windows", "seeding"])
 def test_cache_key_covers_the_code_that_makes_the_network(recs, tmp_path, monkeypatch, module):
     import importlib
 
@@ -119,14 +121,14 @@ def test_cache_key_covers_the_code_that_makes_the_network(recs, tmp_path, monkey
     assert networks.cache_key(job) != before
     monkeypatch.undo()
     assert networks.cache_key(job) == before
-    # the thread count and the device only change rounding: same network, same key
+    # the thread count only changes rounding, and "cpu" is the default device: same key
     other = _job([recs[0].euler[:, 0]], [recs[1].euler[:, 0]], TrainConfig(max_steps=5, num_threads=3, device="cpu"))
     assert networks.cache_key(other) == before
 
 
 def test_cache_key_hashes_one_explicit_list_of_modules():
     assert networks.NETWORK_CODE == tuple(f"danae_lite.danae.{m}" for m in
-                                          ("model", "gemm_conv", "train_types", "train", "windows", "seeding"))
+                                          ("base", "model", "causal", "train_types", "train", "windows", "seeding"))
 
 
 @pytest.mark.parametrize(("module", "changes_key"), [("danae_lite.danae.checkpoints", False), ("danae_lite.runtime", False),
@@ -157,29 +159,7 @@ def test_worker_processes_give_the_same_networks(data, tmp_path):
     for key in serial:
         for k, v in serial[key].model.state_dict().items():
             torch.testing.assert_close(parallel[key].model.state_dict()[k], v, rtol=1e-5, atol=1e-6)
-    assert len(list(tmp_path.glob("*.pt"))) == 4  # stored by the parent
-
-
-def _files(folder, sizes_and_ages):
-    """Write files of the given sizes [bytes], each ``age`` seconds old."""
-    import os
-    import time
-
-    now = time.time()
-    for name, (size, age) in sizes_and_ages.items():
-        f = folder / name
-        f.write_bytes(b"x" * size)
-        os.utime(f, (now - age, now - age))
-
-
-def test_a_capped_cache_removes_the_least_recently_used_networks_first(tmp_path):
-    _files(tmp_path, {"old.pt": (400, 300), "mid.pt": (400, 200), "new.pt": (400, 100), "notes.txt": (10_000, 400)})
-    cache = networks.NetworkCache(tmp_path, max_bytes=900)
-    assert cache.prune() == [tmp_path / "old.pt"]  # 1200 -> 800 bytes; other files are not networks
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["mid.pt", "new.pt", "notes.txt"]
-    assert networks.NetworkCache(tmp_path, max_bytes=0).prune(keep=tmp_path / "mid.pt") == [tmp_path / "new.pt"]
-    assert networks.NetworkCache(tmp_path).prune() == []  # no cap
-    assert networks.as_cache(tmp_path) == networks.NetworkCache(tmp_path.resolve())
+    assert len(network_items(tmp_path)) == 4  # stored by the parent
 
 
 def test_loading_a_network_keeps_it_in_a_capped_cache(data, tmp_path):
@@ -188,18 +168,34 @@ def test_loading_a_network_keeps_it_in_a_capped_cache(data, tmp_path):
     _, xs, ys = data
     cfg = TrainConfig(max_steps=2, num_threads=1)
     cache = networks.NetworkCache(tmp_path, max_bytes=10**9)
-    networks.train_networks({"roll": xs["roll"]}, {"roll": ys["roll"]}, cfg, (0,), cache=cache)
-    networks.train_networks({"roll": xs["roll"]}, {"roll": ys["roll"]}, cfg, (1,), cache=cache)
-    first, second = (next(tmp_path.glob(f"*-seed{s}-*.pt")) for s in (0, 1))
+    assert networks.as_cache(tmp_path) == networks.NetworkCache(tmp_path.resolve())
+    roll = {"roll": xs["roll"]}, {"roll": ys["roll"]}
+    networks.train_networks(*roll, cfg, (0,), cache=cache)
+    networks.train_networks(*roll, cfg, (1,), cache=cache)
+    first, second = (tmp_path / "networks" / key / "output.pkl"
+                     for _, _, key in sorted(stored_networks(tmp_path), key=lambda e: e[1]))
     os.utime(first, (1.0, 1.0))
     os.utime(second, (2.0, 2.0))
-    networks.train_networks({"roll": xs["roll"]}, {"roll": ys["roll"]}, cfg, (0,), cache=cache)  # loads seed 0
+    networks.train_networks(*roll, cfg, (0,), cache=cache)  # loads seed 0: used now
     assert first.stat().st_mtime > second.stat().st_mtime
-    size = first.stat().st_size
+    size = sum(f.stat().st_size for f in first.parent.iterdir())
     # room for two networks: a third one pushes out seed 1, the least recently used
     small = networks.NetworkCache(tmp_path, max_bytes=2 * size + size // 2)
-    networks.train_networks({"roll": xs["roll"]}, {"roll": ys["roll"]}, cfg, (2,), cache=small)
-    assert sorted(int(p.name.split("-seed")[1].split("-")[0]) for p in tmp_path.glob("*.pt")) == [0, 2]
+    networks.train_networks(*roll, cfg, (2,), cache=small)
+    assert [seed for _, seed, _ in sorted(stored_networks(tmp_path), key=lambda e: e[1])] == [0, 2]
+
+
+def test_a_damaged_network_is_named_and_trained_again(data, tmp_path):
+    _, xs, ys = data
+    cfg = TrainConfig(max_steps=2, num_threads=1)
+    roll = {"roll": xs["roll"]}, {"roll": ys["roll"]}
+    first = networks.train_networks(*roll, cfg, (0,), cache=tmp_path)
+    (item,) = network_items(tmp_path)
+    item.write_bytes(item.read_bytes()[:100])               # cut short, as by a full disk
+    with pytest.warns(UserWarning, match="not a readable network") as caught:
+        again = networks.train_networks(*roll, cfg, (0,), cache=tmp_path)
+    assert str(item) in str(caught[0].message)
+    assert network_items(tmp_path) == [item] and _same(first[("roll", 0)], again[("roll", 0)])
 
 
 def _worker_state() -> tuple[int, int]:
@@ -231,7 +227,7 @@ def test_pretrain_trains_once_what_the_fits_then_find(data, tmp_path, monkeypatc
     assert not list(tmp_path.iterdir())
     in_process = networks.train_networks(xs, ys, cfg, (0, 1))
     assert networks.pretrain([*jobs, jobs[0]], cache=tmp_path, jobs=2) == 4  # the repeated job once
-    assert len(list(tmp_path.glob("*.pt"))) == 4
+    assert len(network_items(tmp_path)) == 4
     assert networks.pretrain(jobs, cache=tmp_path, jobs=2) == 0
     monkeypatch.setattr(networks, "_run", lambda *a: pytest.fail("a network was trained again"))
     found = networks.train_networks(xs, ys, cfg, (0, 1), tag="t", cache=tmp_path)
@@ -263,3 +259,28 @@ def _sigint_handler() -> str:
 def test_workers_leave_ctrl_c_to_the_parent():
     # an interrupted or shut-down notebook kernel sends SIGINT to its workers too: they ignore it
     assert list(networks.in_processes(_sigint_handler, [()], processes=2, threads=1)) == ["ignored"]
+
+
+def test_several_gpus_take_the_trainings_in_turn(monkeypatch):
+    # one GPU per worker: with three GPUs the calls go to cuda:0, 1, 2, 0, ...; an explicit
+    # GPU, the CPU or a single GPU stay as asked; the GPU's number is not part of the key
+    monkeypatch.setattr(torch.cuda, "device_count", lambda: 3)
+    assert networks.worker_devices("cuda", 5) == ["cuda:0", "cuda:1", "cuda:2", "cuda:0", "cuda:1"]
+    assert networks.worker_devices("cuda:1", 2) == ["cuda:1", "cuda:1"]
+    assert networks.worker_devices("cpu", 2) == ["cpu", "cpu"] and networks.worker_devices(None, 1) == [None]
+    monkeypatch.setattr(torch.cuda, "device_count", lambda: 1)
+    assert networks.worker_devices("cuda", 2) == ["cuda", "cuda"]
+    monkeypatch.setattr(torch.cuda, "get_device_name", lambda index=0: "Test GPU")
+    monkeypatch.setattr(networks, "default_device", lambda requested=None: requested or "cpu")
+    assert networks.device_name("cuda:0") == networks.device_name("cuda:1") == "cuda Test GPU"
+    assert networks.device_name(None) == networks.device_name("cpu") == "cpu"
+
+
+def test_the_device_is_part_of_the_key(recs, monkeypatch):
+    job = _job([recs[0].euler[:, 0]], [recs[1].euler[:, 0]], TrainConfig(max_steps=5))
+    on_cpu = networks.cache_key(job)
+    monkeypatch.setattr(networks, "device_name", lambda device: "cuda Test GPU" if device == "cuda" else "cpu")
+    gpu = _job([recs[0].euler[:, 0]], [recs[1].euler[:, 0]], TrainConfig(max_steps=5, device="cuda"))
+    assert networks.cache_key(gpu) != on_cpu and len(on_cpu) == 32
+    threads = _job([recs[0].euler[:, 0]], [recs[1].euler[:, 0]], TrainConfig(max_steps=5, num_threads=3))
+    assert networks.cache_key(threads) == on_cpu  # the thread count changes only rounding

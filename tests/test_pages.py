@@ -195,16 +195,7 @@ def test_the_benchmark_table_has_a_column_per_instruction_set_path():
     assert both[2] == "| figure | AVX-512 (native) | AVX2 (forced) |"
     assert both[3] == "|---|---:|---:|"
     assert "| one paper epoch over 50,000 windows [s] | 19.7 | 30.0 |" in both
-    assert len(both) == 4 + len(pages.BENCHMARK_ROWS)          # no ratio measured: no sentence
-    ratio = dict(_report(predict_gemm_over_library_conv=0.93),
-                 avx2_path={"machine": avx2_machine, "predict_gemm_over_library_conv": 1.07})
-    assert pages.benchmark_markdown(ratio).splitlines()[-1] == (
-        "`predict` with the package's matrix-product convolutions took 0.93 times the time of "
-        "torch's own convolutions on the AVX-512 (native) path and 1.07 times the time of torch's "
-        "own convolutions on the AVX2 (forced) path: below 1 the package's are faster, so in this "
-        "run they were faster only on AVX-512 (native).")
-    slower = dict(ratio, predict_gemm_over_library_conv=1.2)
-    assert pages.benchmark_markdown(slower).endswith("so in this run they were faster on no path.")
+    assert len(both) == 4 + len(pages.BENCHMARK_ROWS)
 
 
 def test_the_timings_table_adds_up_the_chapters_and_says_what_is_not_recorded():

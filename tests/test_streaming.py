@@ -3,8 +3,9 @@ import numpy as np
 import pytest
 import torch
 
-from danae_lite.danae.model import (ARCHITECTURES, DanaeCausal, DanaePaper, build_model,
-                                    count_parameters, layer_table, receptive_field)
+from danae_lite.danae.causal import DanaeCausal
+from danae_lite.danae.model import (ARCHITECTURES, DanaePaper, build_model, count_parameters, layer_table,
+                                    receptive_field)
 from danae_lite.research.streaming import (StreamingDanae, measure_latency,
                                            predict_causal)
 from danae_lite.danae.checkpoints import load_result

@@ -26,9 +26,9 @@ STEPS = 60  # a short run: ten validation checks, six steps apart
 LR = 0.002  # the paper's Adam learning rate, used by both loops
 
 # How far two float32 code paths may drift apart in STEPS steps of the same training.
-# The chapter's network runs torch's own convolutions, the package's runs them as matrix
-# products (danae_lite.danae.gemm_conv): the same sums in another order, which also differs from
-# CPU to CPU (AVX2 or AVX-512 kernels). One weight-gradient entry sums 16 windows x 20
+# Both networks run torch's own convolutions, but torch picks its convolution kernels by CPU
+# (AVX2 or AVX-512) and thread count, which sum in different orders; the bound below holds
+# for any two orders. One weight-gradient entry sums 16 windows x 20
 # samples = 320 products, after a backward pass through 11 layers; the forward-error bound
 # of a float32 sum of n terms is n * u (u = 2**-24 = 6e-8): 320 * 6e-8 * 11 layers = 2e-4
 # relative. Adam moves a weight by lr * m/sqrt(v) per step, a quotient in which a relative

@@ -535,13 +535,14 @@ def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str |
 
 
 def _network_files(folder: Path | None) -> dict[str, float]:
-    """File name -> modification time [s since the epoch] of the networks in a cache folder."""
+    """Network key -> modification time [s since the epoch] of the networks in a cache folder
+    (the items of its joblib store, :class:`~danae_lite.danae.networks.NetworkCache`)."""
     if folder is None or not folder.is_dir():
         return {}
     found = {}
-    for f in folder.glob("*.pt"):
+    for f in folder.glob("networks/*/output.pkl"):
         try:
-            found[f.name] = f.stat().st_mtime
+            found[f.parent.name] = f.stat().st_mtime
         except FileNotFoundError:  # removed meanwhile by the size cap
             continue
     return found
@@ -549,7 +550,7 @@ def _network_files(folder: Path | None) -> dict[str, float]:
 
 def _network_counts(before: Mapping[str, float], after: Mapping[str, float], start: float) -> tuple[int, int]:
     """(networks trained, networks found in the cache) by a run that started at ``start``: the
-    files it added, and the older files it loaded (loading marks a file used, see
+    networks it added, and the older ones it loaded (loading marks a network used, see
     :class:`~danae_lite.danae.networks.NetworkCache`)."""
     trained = sum(1 for name in after if name not in before)
     cached = sum(1 for name, mtime in after.items() if name in before and mtime >= start)

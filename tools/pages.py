@@ -235,7 +235,6 @@ BENCHMARK_ROWS: tuple[tuple[str, str, str], ...] = (
     ("train_over_matmul_peak", "training rate / matmul peak", "{:.2f}"),
     ("paper_epoch_50k_s", "one paper epoch over 50,000 windows [s]", "{:.1f}"),
     ("predict_100k_s", "`predict` over 100,000 samples [s]", "{:.2f}"),
-    ("predict_gemm_over_library_conv", "`predict`: matrix-product / torch convolutions [time ratio]", "{:.2f}"),
     ("danae_infer_ms_per_sample", "paper network streaming, one window per sample [ms/sample]", "{:.2f}"),
     ("causal_h128_stream_ms_per_sample", "causal network streaming, hidden 128 [ms/sample]", "{:.3f}"),
     ("denoiser_stream_ms_per_sample", "DANAE-res behind VQF, streaming, median [ms/sample]", "{:.3f}"),
@@ -271,15 +270,6 @@ def benchmark_markdown(report: Mapping[str, Any]) -> str:
     for key, label, fmt in BENCHMARK_ROWS:
         cells = [fmt.format(p[key]) if p.get(key) is not None else "—" for p in paths.values()]
         lines.append(f"| {label} | " + " | ".join(cells) + " |")
-    ratios = {name: p.get("predict_gemm_over_library_conv") for name, p in paths.items()}
-    if all(r is not None for r in ratios.values()):
-        faster = [name for name, r in ratios.items() if r < 1.0]
-        verdict = ("faster on every path" if len(faster) == len(ratios) else
-                   "faster on no path" if not faster else "faster only on " + ", ".join(faster))
-        lines += ["", "`predict` with the package's matrix-product convolutions took "
-                  + " and ".join(f"{r:.2f} times the time of torch's own convolutions on the "
-                                 f"{name} path" for name, r in ratios.items())
-                  + f": below 1 the package's are faster, so in this run they were {verdict}."]
     return "\n".join(lines)
 
 

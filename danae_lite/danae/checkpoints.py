@@ -1,15 +1,16 @@
 """Checkpoints: one file per trained DANAE network, with its settings and training record.
 
-* :func:`save` -- write a network or a :class:`~danae_lite.danae.train.TrainResult` to one file.
+* :func:`save` -- write a network or a :class:`~danae_lite.danae.train_types.TrainResult` to one file.
 * :func:`load` -- read it back as ``(network, TrainConfig, metadata)``.
 * :func:`load_result` -- read a file saved from a training run back into a ``TrainResult``.
 * :class:`CheckpointError` -- a file that is not a readable DANAE checkpoint.
 
 A file is ``torch.save`` of a dict of plain values and tensors only (format
 :data:`CHECKPOINT_FORMAT`, version :data:`CHECKPOINT_VERSION`), so it is read with torch's
-safe loader (``weights_only=True``). Chapter 3 imports :func:`save` and :func:`load` from
-:mod:`danae_lite.danae.train`, which re-exports them. Nothing here changes a trained network, so
-this module is not part of a network's cache key (:func:`danae_lite.danae.networks.cache_key`).
+safe loader (``weights_only=True``). The network cache (:mod:`danae_lite.danae.networks`)
+keeps the same dict (:func:`checkpoint_dict`, :func:`result_from_checkpoint`) in joblib's store.
+Nothing here changes a trained network, so this module is not part of a network's cache key
+(:func:`danae_lite.danae.networks.cache_key`).
 """
 from __future__ import annotations
 
@@ -23,10 +24,12 @@ import pandas as pd
 import torch
 
 from .._version import __version__
-from .model import ARCHITECTURES, DanaeBase, build_model
+from .base import DanaeBase
+from .model import ARCHITECTURES, build_model
 from .train_types import TrainConfig, TrainResult, network_of
 
-__all__ = ["CHECKPOINT_FORMAT", "CHECKPOINT_VERSION", "CheckpointError", "load", "load_result", "save"]
+__all__ = ["CHECKPOINT_FORMAT", "CHECKPOINT_VERSION", "CheckpointError", "checkpoint_dict", "load", "load_result",
+           "result_from_checkpoint", "save"]
 
 CHECKPOINT_FORMAT = "danae_lite.checkpoint"
 CHECKPOINT_VERSION = 1
@@ -62,6 +65,34 @@ def _plain(obj: Any, where: str = "metadata") -> Any:
     raise TypeError(f"{where}: cannot store a {type(obj).__name__} in a checkpoint (use plain values)")
 
 
+def checkpoint_dict(
+    result_or_model: TrainResult | DanaeBase,
+    *,
+    config: TrainConfig | None = None,
+    metadata: dict[str, Any] | None = None,
+) -> dict[str, Any]:
+    """A network, its training configuration and metadata as a dict of plain values and tensors:
+    ``format``, ``version``, ``arch``, ``kwargs`` (constructor arguments), ``state_dict`` (incl.
+    the standardisation buffers), ``config`` (:meth:`TrainConfig.to_dict` or None) and
+    ``metadata``. For a :class:`TrainResult` the metadata gets ``history`` (dict of lists),
+    ``best_step``, ``best_val_loss``, ``seconds``, ``steps``, window counts and ``device``;
+    ``torch_version`` and ``normalization`` are always added. Explicit ``config``/``metadata``
+    win."""
+    net = network_of(result_or_model)
+    meta: dict[str, Any] = {}
+    if isinstance(result_or_model, TrainResult):
+        r = result_or_model
+        config = config or r.config
+        meta.update(history=r.history, best_step=r.best_step, best_val_loss=r.best_val_loss, seconds=r.seconds,
+                    steps=r.steps, n_train_windows=r.n_train_windows, n_val_windows=r.n_val_windows,
+                    device=r.device, stopped_early=r.stopped_early, **r.metadata)
+    meta.update(torch_version=torch.__version__, danae_lite_version=__version__, normalization=net.normalization())
+    meta.update(metadata or {})
+    return dict(format=CHECKPOINT_FORMAT, version=CHECKPOINT_VERSION, arch=net.arch, kwargs=net.constructor_kwargs(),
+                state_dict={k: v.detach().cpu().clone() for k, v in net.state_dict().items()},
+                config=config.to_dict() if config is not None else None, metadata=_plain(meta))
+
+
 def save(
     result_or_model: TrainResult | DanaeBase,
     path: str | os.PathLike[str],
@@ -69,50 +100,16 @@ def save(
     config: TrainConfig | None = None,
     metadata: dict[str, Any] | None = None,
 ) -> Path:
-    """Write a network, its training configuration and metadata to one file.
-
-    The file is ``torch.save`` of a dict holding only plain values and tensors, so
-    :func:`load` can read it with ``weights_only=True``: ``format``, ``version``, ``arch``,
-    ``kwargs`` (constructor arguments), ``state_dict`` (incl. the standardisation buffers),
-    ``config`` (:meth:`TrainConfig.to_dict` or None) and ``metadata``. For a
-    :class:`TrainResult` the metadata gets ``history`` (dict of lists), ``best_step``,
-    ``best_val_loss``, ``seconds``, ``steps``, window counts and ``device``; ``torch_version``
-    and ``normalization`` are always added. Explicit ``config``/``metadata`` win.
-    The file is written to a temporary name and renamed, so a crash leaves no half file.
+    """Write a network, its training configuration and metadata to one file: ``torch.save`` of
+    :func:`checkpoint_dict`, which :func:`load` reads with ``weights_only=True``. The file is
+    written to a temporary name and renamed, so a crash leaves no half file.
 
     Returns
     -------
     Path
         The file written.
     """
-    net = network_of(result_or_model)
-    meta: dict[str, Any] = {}
-    if isinstance(result_or_model, TrainResult):
-        r = result_or_model
-        config = config or r.config
-        meta.update(
-            history=r.history,
-            best_step=r.best_step,
-            best_val_loss=r.best_val_loss,
-            seconds=r.seconds,
-            steps=r.steps,
-            n_train_windows=r.n_train_windows,
-            n_val_windows=r.n_val_windows,
-            device=r.device,
-            stopped_early=r.stopped_early,
-            **r.metadata,
-        )
-    meta.update(torch_version=torch.__version__, danae_lite_version=__version__, normalization=net.normalization())
-    meta.update(metadata or {})
-    ckpt = dict(
-        format=CHECKPOINT_FORMAT,
-        version=CHECKPOINT_VERSION,
-        arch=net.arch,
-        kwargs=net.constructor_kwargs(),
-        state_dict={k: v.detach().cpu().clone() for k, v in net.state_dict().items()},
-        config=config.to_dict() if config is not None else None,
-        metadata=_plain(meta),
-    )
+    ckpt = checkpoint_dict(result_or_model, config=config, metadata=metadata)
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     # a temporary name of this process and call: two processes (two chapters under pytest's
@@ -159,12 +156,21 @@ def load(
     path = Path(path)
     if not path.is_file():
         raise FileNotFoundError(f"no checkpoint file at {path}")
-    expected = f"a DANAE checkpoint (torch.save dict with format={CHECKPOINT_FORMAT!r})"
     try:
         ckpt = torch.load(path, map_location=map_location, weights_only=True)
     except Exception as err:  # corrupt, truncated, or pickled foreign objects
         msg = str(err).strip().splitlines()[0][:200] if str(err).strip() else ""
-        raise CheckpointError(f"{path}: cannot be read as {expected}: {type(err).__name__}: {msg}") from err
+        raise CheckpointError(f"{path}: cannot be read as {_EXPECTED}: {type(err).__name__}: {msg}") from err
+    return _network(ckpt, str(path), expect_arch, map_location)
+
+
+_EXPECTED = f"a DANAE checkpoint (torch.save dict with format={CHECKPOINT_FORMAT!r})"
+
+
+def _network(ckpt: Any, path: str, expect_arch: str | None, map_location: str | torch.device
+             ) -> tuple[DanaeBase, TrainConfig | None, dict[str, Any]]:
+    """The network, configuration and metadata of a checkpoint dict read from ``path``."""
+    expected = _EXPECTED
     if not isinstance(ckpt, dict) or ckpt.get("format") != CHECKPOINT_FORMAT:
         found = f"a dict with keys {sorted(map(str, ckpt))[:8]}" if isinstance(ckpt, dict) else f"a {type(ckpt).__name__}"
         raise CheckpointError(f"{path}: expected {expected}, found {found}")
@@ -193,7 +199,16 @@ def load_result(path: str | os.PathLike[str], *, map_location: str | torch.devic
     cached run can stand in for a fresh one. Raises :class:`CheckpointError` when the file
     lacks the training metadata (e.g. it was saved from a bare network).
     """
-    net, config, meta = load(path, map_location=map_location)
+    return _result(*load(path, map_location=map_location), str(path))
+
+
+def result_from_checkpoint(ckpt: dict[str, Any], where: str) -> TrainResult:
+    """The :class:`TrainResult` of a :func:`checkpoint_dict` of a training run (on the CPU);
+    :class:`CheckpointError` naming ``where`` when it is not one."""
+    return _result(*_network(ckpt, where, None, "cpu"), where)
+
+
+def _result(net: DanaeBase, config: TrainConfig | None, meta: dict[str, Any], path: str) -> TrainResult:
     needed = ("history", "best_step", "best_val_loss", "seconds", "steps", "n_train_windows", "n_val_windows", "device")
     missing = [k for k in needed if k not in meta]
     if config is None or missing:

@@ -4,15 +4,15 @@ This is the one place where the book, the command line and every method of the l
 train networks. :func:`train_networks` takes one input/target array per training recording
 for each *head* (``"roll"``, ``"pitch"``, ``"yaw"`` for the paper's one-network-per-angle
 DANAE; ``"joint"`` for a variant that predicts all angles at once), and returns a
-:class:`~danae_lite.danae.train.TrainResult` per ``(head, seed)``.
+:class:`~danae_lite.danae.train_types.TrainResult` per ``(head, seed)``.
 
 * **Cache** (``cache``: a :class:`NetworkCache`, a plain folder, or None): passed in by the
-  entry point, never read from the environment here. A network is stored as
-  ``<cache>/<tag>-seed<seed>-<key>.pt``, ``key`` hashing everything that determines it
-  (:func:`cache_key`); a network with the same key under another tag is the same network and
-  is loaded; a damaged file is reported (a warning naming it) and the network trained again
-  in its place. A :class:`NetworkCache` with a size cap removes its least recently used files
-  when a new one would exceed the cap (a plain folder has no cap).
+  entry point, never read from the environment here. A network is an item of joblib's store
+  under its key, a hash of everything that determines it (:func:`cache_key`); a network asked
+  for under another tag is the same network and is loaded; a damaged item is reported (a
+  warning naming it) and the network trained again in its place. A :class:`NetworkCache`
+  with a size cap removes its least recently used networks when a new one would exceed the
+  cap (a plain folder has no cap).
 * **Parallel** (``jobs``): the trainings that the cache does not hold run in ``jobs`` worker
   processes (:func:`in_processes`: :class:`joblib.Parallel`, also used by
   :mod:`danae_lite.research.crossval`), each with ``max(1, cores // jobs)`` torch threads
@@ -37,9 +37,11 @@ from typing import Any, TypeVar
 
 import joblib
 import numpy as np
+import torch
 from numpy.typing import NDArray
 
-from .checkpoints import CheckpointError, load_result, save
+from .checkpoints import checkpoint_dict, result_from_checkpoint
+from .seeding import default_device
 from .train import train
 from .train_types import TrainConfig, TrainResult
 
@@ -47,67 +49,74 @@ Array = NDArray[np.float64]
 R = TypeVar("R")
 
 NETWORK_CODE: tuple[str, ...] = (
-    "danae_lite.danae.model",  # the layers and their initialisation
-    "danae_lite.danae.gemm_conv",  # the convolutions as matrix products
+    "danae_lite.danae.base",  # what every network shares: initialisation, standardisation
+    "danae_lite.danae.model",  # the authors' two networks, layer by layer
+    "danae_lite.danae.causal",  # the causal network
     "danae_lite.danae.train_types",  # TrainConfig: the network's constructor arguments
     "danae_lite.danae.train",  # the split, the windows' standardisation, the loop, Adam, model selection
     "danae_lite.danae.windows",  # how recordings are cut into windows
     "danae_lite.danae.seeding",  # how the random generators are seeded
 )
 """The modules whose source decides a trained network, hashed into its :func:`cache_key`.
-Left out: the checkpoint files (:mod:`danae_lite.danae.checkpoints`: writing and reading a network
+Left out: the checkpoints (:mod:`danae_lite.danae.checkpoints`: writing and reading a network
 changes no network) and this module (caching and worker processes change no network either),
 so editing them keeps the cache."""
 
 
 @dataclass(frozen=True)
 class NetworkCache:
-    """A folder of trained networks, optionally capped in size.
+    """Trained networks kept in joblib's store (the storage of a :class:`joblib.Memory` in
+    ``folder``), optionally capped in size.
 
-    Loading a network marks it used (its modification time is set to now); storing one that
-    takes the folder past ``max_bytes`` removes the least recently used files first, never
-    the one just stored. It is a path (``os.fspath(cache)`` is the folder), so it goes
-    wherever a cache folder is accepted.
+    A network is the item ``networks/<key>`` (:func:`cache_key`), its
+    :func:`~danae_lite.danae.checkpoints.checkpoint_dict` with the weights as NumPy arrays:
+    plain data. joblib writes an item whole under a temporary name and then renames it, so
+    processes sharing the folder never read half of one. Loading a network marks it used;
+    storing one past ``max_bytes`` removes the least recently used first (joblib's
+    ``reduce_size``). It is a path (``os.fspath(cache)`` is the folder), so it goes wherever a
+    cache folder is accepted.
     """
 
     folder: Path
-    """Where the ``.pt`` files are."""
+    """The folder of the :class:`joblib.Memory`."""
     max_bytes: int | None = None
-    """Cap on the total size of the folder's ``.pt`` files [bytes]; None: no cap."""
+    """Cap on the total size of the stored networks [bytes]; None: no cap."""
 
     def __fspath__(self) -> str:
         return str(self.folder)
 
-    def prune(self, keep: Path | None = None) -> list[Path]:
-        """Remove the least recently used files until the folder is within ``max_bytes``;
-        ``keep`` is never removed. Returns the files removed (oldest first)."""
-        return prune_folder(self.folder, "*.pt", self.max_bytes, keep)
+    @functools.cached_property
+    def memory(self) -> joblib.Memory:
+        """The :class:`joblib.Memory` whose storage holds the networks (it prints nothing)."""
+        return joblib.Memory(self.folder, verbose=0)
 
-
-def prune_folder(folder: Path, pattern: str, max_bytes: int | None, keep: Path | None = None) -> list[Path]:
-    """Remove the least recently used (oldest modification time) files of ``folder`` matching
-    ``pattern`` until they total at most ``max_bytes``; ``keep`` is never removed, nor is
-    anything when ``max_bytes`` is None. Returns the files removed (oldest first)."""
-    if max_bytes is None or not folder.is_dir():
-        return []
-    files = []
-    for f in folder.glob(pattern):
+    def load(self, key: str) -> TrainResult | None:
+        """The network stored under ``key``, or None. A damaged item is reported (a warning
+        naming it) and removed: the network is trained again in its place."""
+        item, backend = ["networks", key], self.memory.store_backend
+        where = os.path.join(backend.location, *item, "output.pkl")
+        if not backend.contains_item(item):
+            return None
         try:
-            st = f.stat()
+            ckpt = backend.load_item(item, verbose=0)
+            os.utime(where)  # used now: the last to go
+            ckpt["state_dict"] = {k: torch.from_numpy(v) for k, v in ckpt["state_dict"].items()}
+            return result_from_checkpoint(ckpt, where)
         except FileNotFoundError:  # removed meanwhile by another process sharing the folder
-            continue
-        files.append((st.st_mtime, f, st.st_size))
-    total = sum(size for _, _, size in files)
-    removed = []
-    for _, f, size in sorted(files):
-        if total <= max_bytes:
-            break
-        if f == keep:
-            continue
-        f.unlink(missing_ok=True)
-        total -= size
-        removed.append(f)
-    return removed
+            return None
+        except Exception as err:  # damaged: trained again, and the item replaced
+            warnings.warn(f"{where}: not a readable network ({type(err).__name__}: {err}); it is trained "
+                          "again and replaced", stacklevel=3)
+            backend.clear_item(item)
+            return None
+
+    def save(self, key: str, result: TrainResult, metadata: Mapping[str, Any]) -> None:
+        """Store ``result`` under ``key`` with ``metadata``, then keep the store within ``max_bytes``."""
+        ckpt = checkpoint_dict(result, metadata=dict(metadata))
+        ckpt["state_dict"] = {k: v.numpy() for k, v in ckpt["state_dict"].items()}
+        self.memory.store_backend.dump_item(["networks", key], ckpt, verbose=0)
+        if self.max_bytes is not None:
+            self.memory.reduce_size(bytes_limit=self.max_bytes)
 
 
 def as_cache(cache: str | os.PathLike[str] | None) -> NetworkCache | None:
@@ -153,40 +162,40 @@ def _code_only(source: bytes) -> bytes:
 
 
 def cache_key(job: NetworkJob) -> str:
-    """16 hex digits of a SHA-256 over the code of :data:`NETWORK_CODE`, the settings
-    (not the device or thread count, which change only float rounding) and the data."""
+    """32 hex digits of a SHA-256 over what decides a trained network: the code of
+    :data:`NETWORK_CODE`, torch's and NumPy's versions, the instruction set torch's CPU kernels
+    use, the device (:func:`device_name`), the settings (not the thread count, which changes
+    only float rounding) and the data."""
     h = hashlib.sha256()
     for name in NETWORK_CODE:
         h.update(module_code(name))
+    h.update(f"torch {torch.__version__}; numpy {np.__version__}; {torch.backends.cpu.get_cpu_capability()}; "
+             f"{device_name(job.config.device)}".encode())
     settings = {k: v for k, v in job.config.to_dict().items() if k not in ("device", "num_threads")}
     h.update(repr(sorted(settings.items())).encode())
     for a in (*job.inputs, *(job.masks or ()), *job.targets):
         h.update(str(a.shape).encode())
         h.update(np.asarray(a, dtype=np.float64).tobytes())
-    return h.hexdigest()[:16]
+    return h.hexdigest()[:32]
+
+
+def device_name(device: str | None) -> str:
+    """What a network's key names of the device it trains on: ``cpu``, or ``cuda`` and the
+    GPU's model (the GPU's number does not change a network: ``cuda:0`` and ``cuda:1`` of
+    one model give the same key)."""
+    dev = torch.device(default_device(device))
+    if dev.type != "cuda":
+        return dev.type
+    return f"cuda {torch.cuda.get_device_name(dev.index or 0)}"
 
 
 def _cached(job: NetworkJob, cache: NetworkCache | None) -> TrainResult | None:
-    if cache is None:
-        return None
-    for found in sorted(cache.folder.glob(f"*-seed{job.config.seed}-{cache_key(job)}.pt")):
-        try:
-            os.utime(found)  # used now: the last to be removed by the size cap
-            return load_result(found)
-        except FileNotFoundError:  # removed meanwhile by another process sharing the folder
-            continue
-        except CheckpointError as err:  # damaged: trained again, and the file replaced
-            warnings.warn(f"{err}; the network is trained again and the file replaced", stacklevel=2)
-            continue
-    return None
+    return None if cache is None else cache.load(cache_key(job))
 
 
 def _store(job: NetworkJob, res: TrainResult, cache: NetworkCache | None) -> None:
     if cache is not None:
-        cache.folder.mkdir(parents=True, exist_ok=True)
-        path = save(res, cache.folder / f"{job.tag}-seed{job.config.seed}-{cache_key(job)}.pt",
-                    metadata=dict(job.metadata))
-        cache.prune(keep=path)
+        cache.save(cache_key(job), res, {**job.metadata, "tag": job.tag})
 
 
 def _run(job: NetworkJob, progress: bool) -> TrainResult:
@@ -282,15 +291,18 @@ def run_jobs(jobs_: Sequence[NetworkJob], *, cache: str | os.PathLike[str] | Non
 
     ``jobs`` > 1 trains the missing networks in that many worker processes, or on the Dask
     cluster of :func:`use_scheduler` (see the module docstring), each with
-    :func:`threads_per_process` torch threads unless the configuration fixes them; this process
-    looks the networks up in the cache and stores what comes back.
+    :func:`threads_per_process` torch threads unless the configuration fixes them, and with
+    several GPUs one GPU each in turn (:func:`worker_devices`); this process looks the networks
+    up in the cache and stores what comes back.
     """
     store = as_cache(cache)
     results: list[TrainResult | None] = [_cached(j, store) for j in jobs_]
     todo = [i for i, r in enumerate(results) if r is None]
     if (jobs > 1 or _scheduler is not None) and len(todo) > 1:
         threads = threads_per_process(jobs)
-        calls = [(replace(jobs_[i], config=_threads(jobs_[i].config, threads)), False) for i in todo]
+        devices = worker_devices(jobs_[todo[0]].config.device, len(todo))
+        calls = [(replace(jobs_[i], config=replace(_threads(jobs_[i].config, threads), device=device)), False)
+                 for i, device in zip(todo, devices)]
         for res, i in zip(in_processes(_run, calls, processes=jobs, threads=threads), todo):
             results[i] = res
             _store(jobs_[i], res, store)
@@ -324,6 +336,17 @@ def _work(job: NetworkJob) -> float:
     windows = sum(max(0, len(x) - c.window + 1) for x in job.inputs)
     steps = c.epochs * windows / c.batch_size
     return min(steps, c.max_steps or steps) * c.window
+
+
+def worker_devices(device: str | None, calls: int) -> list[str | None]:
+    """The device of each of ``calls`` trainings that run side by side: with ``"cuda"`` (no
+    number) and several GPUs, the GPUs in turn (``cuda:0``, ``cuda:1``, ...), so that workers
+    do not all crowd the first one; otherwise ``device`` for every call. The GPU's number is
+    not part of a network's key (:func:`device_name`)."""
+    count = torch.cuda.device_count() if device is not None and device.strip().lower() == "cuda" else 0
+    if count < 2:
+        return [device] * calls
+    return [f"cuda:{k % count}" for k in range(calls)]
 
 
 def _threads(config: TrainConfig, threads: int) -> TrainConfig:

@@ -4,14 +4,15 @@
 * :func:`seeding_source` -- the source text of :func:`seed_everything`.
 * :func:`default_device` -- the requested torch device, else CUDA when available, else the CPU.
 
-It imports neither :mod:`danae_lite.runtime` nor torch at import time, so the
-data layer stays importable without torch. Its source is part of a trained network's cache
+It imports neither :mod:`danae_lite.runtime` nor torch, so the chapters that never train
+(the book's ``setup()`` seeds through it) load no torch. Its source is part of a trained network's cache
 key (:func:`danae_lite.danae.networks.cache_key`).
 """
 from __future__ import annotations
 
 import inspect
 import random
+import sys
 
 import numpy as np
 
@@ -19,7 +20,9 @@ __all__ = ["default_device", "seed_everything", "seeding_source"]
 
 
 def seed_everything(seed: int = 0) -> None:
-    """Seed python's ``random``, numpy's global generator and torch (CPU and CUDA).
+    """Seed python's ``random``, numpy's global generator and, once it is loaded, torch (CPU
+    and CUDA): training has loaded it; the book's ``setup()`` of a chapter that never loads
+    torch seeds the other two.
 
     Parameters
     ----------
@@ -28,11 +31,9 @@ def seed_everything(seed: int = 0) -> None:
     """
     random.seed(seed)
     np.random.seed(seed)
-    try:
-        import torch
-    except ImportError:  # torch is a dependency, but keep the data layer importable without it
-        return
-    torch.manual_seed(seed)
+    torch = sys.modules.get("torch")
+    if torch is not None:
+        torch.manual_seed(seed)
 
 
 def seeding_source() -> str:

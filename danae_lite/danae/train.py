@@ -1,9 +1,10 @@
-"""Training DANAE and choosing the best state on held-out windows (predicting: :mod:`danae_lite.danae.predict`).
+"""Training DANAE: chapter 3's loop, with the options the research needs (predicting:
+:mod:`danae_lite.danae.predict`).
 
 The paper trains with Adam (lr 0.002, batch 16) on all stride-1 windows of the training
 recordings, minimising the MSE between the network output and the ground-truth angles
 (rad); one epoch for each OxIOD setting, 100 for UCS. The authors' code differs in three
-settings, all exposed in :class:`TrainConfig`:
+settings, all exposed in :class:`~danae_lite.danae.train_types.TrainConfig`:
 
 * ``lr``: the code default was 2e-4; the paper states 2e-3 (our default).
 * ``betas``: the code used Adam betas (0.5, 0.999); PyTorch's (0.9, 0.999) is our default.
@@ -11,24 +12,21 @@ settings, all exposed in :class:`TrainConfig`:
   gradient by its running RMS, so a constant factor changes almost nothing (only the
   relative size of Adam's ``eps``); the default 1.0 is the plain MSE.
 
-Model selection: ``val_fraction`` of every *training* recording (a contiguous block at its
-end, :func:`validation_tail`) is held out; the network is evaluated on it every
-``val_every`` steps and the best state is kept (optionally stopping early). The test
-recording is never touched. The paper reports no validation split, so with
-``val_fraction=0`` the final state is used, as there.
-
-:func:`train` reads as chapter 3's plain loop: check the inputs, split each recording into
-a training head and a validation tail, build the network, cut the windows, then repeat
-:func:`_optimisation_step` and, every ``val_every`` steps, a validation check
-(:class:`_ModelSelection`). :class:`TrainConfig` and :class:`TrainResult` live in
-:mod:`danae_lite.danae.train_types`, :func:`save` and :func:`load` in :mod:`danae_lite.danae.checkpoints`;
-all four are importable from here.
+:func:`train` is chapter 3's ``fit_danae`` step for step: (1) split each recording into a
+training head and a validation tail (:func:`validation_tail`), (2) seed the initial weights
+and, on a generator of its own, the shuffling, (3) cut the windows, then repeat Adam steps
+on shuffled batches with a validation check every ``val_every`` steps, keeping the best
+weights, and restore them at the end. The options beyond the chapter: target masks (windows
+holding an unusable target sample are left out), standardised inputs and targets, a loss
+that ignores the first samples of a window, early stopping, a step cap, the device, the
+thread count and a progress bar. The test recording is never touched. The paper reports no
+validation split, so with ``val_fraction=0`` the final state is used, as there.
 """
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Iterator, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -36,13 +34,13 @@ import numpy as np
 import pandas as pd
 import torch
 
-from .checkpoints import load, save  # chapter 3 imports them from here (danae_lite.danae.train)
-from .model import DanaeBase, build_model
+from .base import DanaeBase
+from .model import build_model
 from .seeding import default_device, seed_everything
 from .train_types import TrainConfig, TrainResult
 from .windows import sliding_windows, windows_from_recordings
 
-__all__ = ["TrainConfig", "TrainResult", "load", "save", "train", "validation_tail"]
+__all__ = ["HISTORY_COLUMNS", "TorchSettings", "as_2d", "train", "validation_tail"]
 
 HISTORY_COLUMNS = ["step", "epoch", "train_loss", "val_loss"]
 """Columns of :attr:`TrainResult.history`, one row per validation check."""
@@ -51,13 +49,6 @@ HISTORY_COLUMNS = ["step", "epoch", "train_loss", "val_loss"]
 # ---------------------------------------------------------------------------------------
 # torch settings
 # ---------------------------------------------------------------------------------------
-def _default_threads() -> int:
-    """The process's torch thread count (``torch.get_num_threads()``), set by the entry
-    points (the book's :func:`~danae_lite.book.setup`, the CLI's ``--threads``) or by
-    ``OMP_NUM_THREADS``; torch's own default is every physical core."""
-    return max(1, torch.get_num_threads())
-
-
 def _keep_freed_memory() -> None:
     """Let glibc keep freed blocks of up to 64 MiB for reuse (once per process; no-op elsewhere).
 
@@ -122,7 +113,7 @@ class TorchSettings:
 
 
 # ---------------------------------------------------------------------------------------
-# inputs: recordings, training and validation blocks, windows
+# inputs, split, windows
 # ---------------------------------------------------------------------------------------
 def as_2d(x: Any, what: str, channels: int | None = None) -> np.ndarray:
     """One recording as a checked float32 array of shape (N, C).
@@ -210,70 +201,33 @@ def validation_tail(n_samples: int, window: int, val_fraction: float) -> int:
     return 0 if val_fraction == 0 else max(window, int(round(val_fraction * n_samples)))
 
 
-def _split(
-    inputs: list[np.ndarray], targets: list[np.ndarray], window: int, val_fraction: float
-) -> tuple[list[np.ndarray], list[np.ndarray], list[np.ndarray], list[np.ndarray]]:
-    """Per recording: head block for training, tail block (:func:`validation_tail`) for validation."""
-    xs_tr, ys_tr, xs_va, ys_va = [], [], [], []
-    for i, (x, y) in enumerate(zip(inputs, targets)):
+@dataclass
+class _Part:
+    """One side of the split, per training recording: inputs (N_i, C_in), targets (N_i, C_out)
+    and the target mask (N_i,) or None (float32 arrays)."""
+
+    x: list[np.ndarray]
+    y: list[np.ndarray]
+    mask: list[np.ndarray] | None
+
+
+def _split(xs: list[np.ndarray], ys: list[np.ndarray], masks: list[np.ndarray] | None, window: int,
+           val_fraction: float) -> tuple[_Part, _Part]:
+    """Each recording's head for training and its tail (:func:`validation_tail`) for validation."""
+    head, tail = _Part([], [], None if masks is None else []), _Part([], [], None if masks is None else [])
+    for i, (x, y) in enumerate(zip(xs, ys)):
         n = len(x)
         n_val = validation_tail(n, window, val_fraction)
         if n - n_val < window:
-            raise ValueError(
-                f"recording {i} has N={n} samples: too short for a training block of {window} "
-                f"samples plus a validation block of {n_val}"
-            )
-        xs_tr.append(x[: n - n_val])
-        ys_tr.append(y[: n - n_val])
-        if n_val:
-            xs_va.append(x[n - n_val :])
-            ys_va.append(y[n - n_val :])
-    return xs_tr, ys_tr, xs_va, ys_va
-
-
-def _valid_windows(masks: list[np.ndarray], window: int, stride: int = 1) -> np.ndarray:
-    """For the windows of each recording, ``stride`` samples apart (in :func:`_to_windows`
-    order): True when every target sample in the window is usable."""
-    return np.concatenate([sliding_windows(m, window, stride).all(axis=1) for m in masks])
-
-
-@dataclass
-class _Blocks:
-    """The training recordings split into training heads and validation tails (float32 arrays)."""
-
-    x_train: list[np.ndarray]
-    """Input head of each recording, (N_i - tail_i, C_in)."""
-    y_train: list[np.ndarray]
-    """Target head of each recording, (N_i - tail_i, C_out)."""
-    x_val: list[np.ndarray]
-    """Input tail of each recording, (tail_i, C_in); empty without validation."""
-    y_val: list[np.ndarray]
-    """Target tail of each recording, (tail_i, C_out)."""
-    keep_train: torch.Tensor | None = None
-    """Per training window (:func:`_to_windows` order): free of masked targets. None: all are."""
-    keep_val: torch.Tensor | None = None
-    """The same for the validation windows."""
-    x_stat: list[np.ndarray] = field(default_factory=list)
-    """Input samples the standardisation statistics come from (usable training samples)."""
-    y_stat: list[np.ndarray] = field(default_factory=list)
-    """Target samples the standardisation statistics come from."""
-
-
-def _split_blocks(xs: list[np.ndarray], ys: list[np.ndarray], masks: list[np.ndarray] | None,
-                  window: int, val_fraction: float, val_stride: int = 1) -> _Blocks:
-    """Split every recording (and its mask) into a training head and a validation tail
-    (validation windows ``val_stride`` samples apart)."""
-    xs_tr, ys_tr, xs_va, ys_va = _split(xs, ys, window, val_fraction)
-    if masks is None:
-        return _Blocks(xs_tr, ys_tr, xs_va, ys_va, x_stat=xs_tr, y_stat=ys_tr)
-    _, ms_tr, _, ms_va = _split(xs, masks, window, val_fraction)
-    keep_tr = torch.from_numpy(_valid_windows(ms_tr, window))
-    keep_va = torch.from_numpy(_valid_windows(ms_va, window, val_stride)) if ms_va else None
-    if not bool(keep_tr.any()):
-        raise ValueError("no training window is free of masked target samples")
-    # standardisation statistics from usable samples only
-    return _Blocks(xs_tr, ys_tr, xs_va, ys_va, keep_tr, keep_va,
-                   x_stat=[x[m] for x, m in zip(xs_tr, ms_tr)], y_stat=[y[m] for y, m in zip(ys_tr, ms_tr)])
+            raise ValueError(f"recording {i} has N={n} samples: too short for a training block of {window} "
+                             f"samples plus a validation block of {n_val}")
+        for part, cut in ((head, slice(0, n - n_val)), (tail, slice(n - n_val, n))):
+            if cut.stop > cut.start:
+                part.x.append(x[cut])
+                part.y.append(y[cut])
+                if masks is not None and part.mask is not None:
+                    part.mask.append(masks[i][cut])
+    return head, tail
 
 
 def _std(a: np.ndarray) -> np.ndarray:
@@ -282,188 +236,84 @@ def _std(a: np.ndarray) -> np.ndarray:
     return np.where(s > 1e-12, s, 1.0)
 
 
-def _new_network(cfg: TrainConfig, blocks: _Blocks, c_in: int, c_out: int, device: str) -> DanaeBase:
+def _new_network(cfg: TrainConfig, head: _Part, device: str) -> DanaeBase:
     """A freshly initialised network (drawn from torch's seeded global generator) on ``device``,
-    holding the mean and std of the training samples when ``cfg.normalize == "standard"``."""
-    net = build_model(cfg.arch, in_channels=c_in, out_channels=c_out, **cfg.model_kwargs())
+    holding the mean and std of the usable training samples when ``cfg.normalize == "standard"``."""
+    net = build_model(cfg.arch, in_channels=head.x[0].shape[1], out_channels=head.y[0].shape[1],
+                      **cfg.model_kwargs())
     if cfg.normalize == "standard":
-        xa, ya = np.concatenate(blocks.x_stat), np.concatenate(blocks.y_stat)
+        keep = head.mask or [slice(None)] * len(head.x)
+        xa = np.concatenate([x[m] for x, m in zip(head.x, keep)])
+        ya = np.concatenate([y[m] for y, m in zip(head.y, keep)])
         net.set_normalization(xa.mean(0, dtype=np.float64), _std(xa), ya.mean(0, dtype=np.float64), _std(ya))
     return net.to(device)
 
 
-def _to_windows(recs: list[np.ndarray], window: int, device: str, stride: int = 1) -> torch.Tensor:
-    """Windows of each recording, ``stride`` samples apart, as a (n, C, L) float32 tensor."""
-    w = windows_from_recordings(recs, window, stride=stride)  # (n, L, C)
-    return torch.from_numpy(np.ascontiguousarray(w.transpose(0, 2, 1))).to(device)
+def _cut_windows(part: _Part, window: int, stride: int, device: str) -> tuple[torch.Tensor, torch.Tensor]:
+    """Windows ``stride`` samples apart of each recording, none across two, as (n, C, L) float32
+    inputs and targets; windows holding a masked target sample left out."""
+    x, y = (torch.from_numpy(np.ascontiguousarray(windows_from_recordings(r, window, stride=stride)
+                                                  .transpose(0, 2, 1))) for r in (part.x, part.y))
+    if part.mask is not None:
+        keep = torch.from_numpy(np.concatenate([sliding_windows(m, window, stride).all(axis=1) for m in part.mask]))
+        x, y = x[keep], y[keep]
+    return x.to(device), y.to(device)
+
+
+@dataclass
+class _TrainingWindows:
+    """The stride-1 training windows of the heads, not cut out: memory holds the samples once
+    (standardised, concatenated), and each batch gathers its windows by their first sample
+    (:meth:`batch`) — the same values, in the same (B, C, L) layout, as rows of the cut-out
+    windows of :func:`_cut_windows`."""
+
+    x: torch.Tensor
+    """Inputs of every head, concatenated, (N, C_in), in the network's standard units."""
+    y: torch.Tensor
+    """Targets, (N, C_out), in standard units (rad when ``normalize="none"``)."""
+    starts: torch.Tensor
+    """First sample (a row of ``x``) of each window, in :func:`_cut_windows` order, masked
+    windows left out."""
+    window: int
+
+    def __len__(self) -> int:
+        return len(self.starts)
+
+    def batch(self, idx: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
+        """Windows ``idx`` as contiguous (B, C_in, L) inputs and (B, C_out, L) targets."""
+        rows = self.starts[idx, None] + torch.arange(self.window, device=self.starts.device)
+        return self.x[rows].transpose(1, 2).contiguous(), self.y[rows].transpose(1, 2).contiguous()
+
+
+def _training_windows(head: _Part, net: DanaeBase, window: int, device: str) -> _TrainingWindows:
+    """The training windows of ``head`` in the network's standard units (:class:`_TrainingWindows`)."""
+    offsets = np.cumsum([0] + [len(x) for x in head.x[:-1]])
+    starts = np.concatenate([o + np.arange(len(x) - window + 1) for o, x in zip(offsets, head.x)])
+    if head.mask is not None:
+        starts = starts[np.concatenate([sliding_windows(m, window).all(axis=1) for m in head.mask])]
+    x = torch.from_numpy(np.concatenate(head.x)).to(device)
+    y = torch.from_numpy(np.concatenate(head.y)).to(device)
+    return _TrainingWindows((x - net.in_mean.reshape(-1)) / net.in_std.reshape(-1),
+                            (y - net.out_mean.reshape(-1)) / net.out_std.reshape(-1),
+                            torch.from_numpy(starts).to(device), window)
 
 
 @torch.no_grad()
 def _mse(net: DanaeBase, x: torch.Tensor, y: torch.Tensor, batch_size: int, start: int = 0) -> float:
-    """Mean squared error in raw units over all windows, samples ``>= start`` of each window and channels."""
-    was_training = net.training
+    """MSE in raw units over all windows, from window position ``start`` on: evaluation mode,
+    batches of ``batch_size`` windows, summed in float64."""
     net.eval()
     total = 0.0
     for i in range(0, len(x), batch_size):
-        d = net(x[i : i + batch_size])[..., start:] - y[i : i + batch_size, :, start:]
+        d = net(x[i: i + batch_size])[..., start:] - y[i: i + batch_size, :, start:]
         total += float((d**2).sum(dtype=torch.float64))
-    net.train(was_training)
+    net.train()
     return total / y[..., start:].numel()
 
 
 @dataclass
-class _Windows:
-    """The windows a run trains and validates on. Training windows are not cut out: each batch
-    gathers its windows from the standardised samples by their first sample (:meth:`batch`),
-    so memory holds the samples once, not every window of ``L`` samples; validation windows,
-    far fewer, are cut out as (n, C, L) float32 tensors."""
-
-    x_train: torch.Tensor
-    """Training inputs of every training head, concatenated, (N, C_in), standardised by the
-    network's input statistics."""
-    y_train: torch.Tensor
-    """Training targets, (N, C_out), standardised: the loss is optimised in these units (rad
-    when ``normalize="none"``)."""
-    starts: torch.Tensor
-    """First sample (a row of ``x_train``) of each training window, in :func:`_to_windows`
-    order, masked windows left out."""
-    x_val: torch.Tensor | None
-    """Validation inputs in raw units (rad); None when there is no validation window."""
-    y_val: torch.Tensor | None
-    """Validation targets in raw units (rad)."""
-    window: int = 20
-
-    @property
-    def has_val(self) -> bool:
-        return self.x_val is not None
-
-    @property
-    def n_train(self) -> int:
-        return len(self.starts)
-
-    @property
-    def n_val(self) -> int:
-        return len(self.x_val) if self.x_val is not None else 0
-
-    def batch(self, idx: torch.Tensor) -> tuple[torch.Tensor, torch.Tensor]:
-        """Training windows ``idx`` as contiguous (B, C_in, L) inputs and (B, C_out, L) targets:
-        the same values, in the same layout, as rows of the cut-out windows."""
-        rows = self.starts[idx, None] + torch.arange(self.window, device=self.starts.device)
-        return (self.x_train[rows].transpose(1, 2).contiguous(),
-                self.y_train[rows].transpose(1, 2).contiguous())
-
-    def val_loss(self, net: DanaeBase, cfg: TrainConfig) -> float:
-        """The network's validation MSE (rad^2) from window position ``cfg.loss_start`` on; NaN without validation."""
-        if self.x_val is None or self.y_val is None:
-            return float("nan")
-        return _mse(net, self.x_val, self.y_val, cfg.eval_batch_size, cfg.loss_start)
-
-
-def _window_starts(recs: list[np.ndarray], window: int) -> np.ndarray:
-    """First sample of every stride-1 window of each recording, as rows of the recordings
-    concatenated (in :func:`_to_windows` order)."""
-    offsets = np.cumsum([0] + [len(r) for r in recs[:-1]])
-    return np.concatenate([o + np.arange(len(r) - window + 1) for o, r in zip(offsets, recs)])
-
-
-def _cut_windows(blocks: _Blocks, net: DanaeBase, window: int, device: str, val_stride: int = 1) -> _Windows:
-    """Stride-1 windows of the training heads (standardised; as starts into their samples) and
-    windows ``val_stride`` apart of the validation tails, masked windows left out."""
-    starts = torch.from_numpy(_window_starts(blocks.x_train, window)).to(device)
-    if blocks.keep_train is not None:
-        starts = starts[blocks.keep_train.to(device)]
-    # the optimised loss lives in standardised units (identical to rad when normalize="none")
-    x_tr = torch.from_numpy(np.concatenate(blocks.x_train)).to(device)
-    y_tr = torch.from_numpy(np.concatenate(blocks.y_train)).to(device)
-    x_tr_n = (x_tr - net.in_mean.reshape(-1)) / net.in_std.reshape(-1)
-    y_tr_n = (y_tr - net.out_mean.reshape(-1)) / net.out_std.reshape(-1)
-    x_va = y_va = None
-    if blocks.x_val:
-        x_va = _to_windows(blocks.x_val, window, device, val_stride)
-        y_va = _to_windows(blocks.y_val, window, device, val_stride)
-        if blocks.keep_val is not None:
-            x_va, y_va = x_va[blocks.keep_val.to(device)], y_va[blocks.keep_val.to(device)]
-        if len(x_va) == 0:  # every validation window holds a masked target
-            x_va = y_va = None
-    return _Windows(x_tr_n, y_tr_n, starts, x_va, y_va, window)
-
-
-# ---------------------------------------------------------------------------------------
-# training
-# ---------------------------------------------------------------------------------------
-@dataclass(frozen=True)
-class _Schedule:
-    """How many optimiser steps a run takes and after which ones it validates."""
-
-    steps_per_epoch: int
-    total_steps: int
-    val_every: int
-
-    @classmethod
-    def of(cls, n_train: int, cfg: TrainConfig) -> "_Schedule":
-        """``cfg.epochs`` passes over ``n_train`` windows (capped at ``cfg.max_steps``);
-        ``cfg.val_every`` steps between checks, by default ten checks per epoch."""
-        steps_per_epoch = math.ceil(n_train / cfg.batch_size)
-        total_steps = steps_per_epoch * cfg.epochs
-        if cfg.max_steps is not None:
-            total_steps = min(total_steps, cfg.max_steps)
-        val_every = cfg.val_every or max(1, min(steps_per_epoch, total_steps) // 10)
-        return cls(steps_per_epoch, total_steps, val_every)
-
-    def validates_at(self, step: int) -> bool:
-        """Whether a validation check follows optimiser step ``step`` (always after the last)."""
-        return step % self.val_every == 0 or step == self.total_steps
-
-
-def _batches(n_train: int, batch_size: int, epochs: int, seed: int, device: str) -> Iterator[torch.Tensor]:
-    """Window indices of each optimiser step: every epoch a fresh shuffle (a ``torch.Generator``
-    seeded with ``seed``, apart from the global one) cut into batches; the last may be smaller."""
-    gen = torch.Generator().manual_seed(seed)
-    for _ in range(epochs):
-        perm = torch.randperm(n_train, generator=gen).to(device)
-        for i in range(0, n_train, batch_size):
-            yield perm[i : i + batch_size]
-
-
-def _optimisation_step(net: DanaeBase, opt: torch.optim.Optimizer, x: torch.Tensor, y: torch.Tensor,
-                       cfg: TrainConfig) -> torch.Tensor:
-    """One Adam step on a batch of standardised windows ``x`` (B, C_in, L) -> ``y`` (B, C_out, L).
-
-    Returns the batch's MSE from window position ``cfg.loss_start`` on (before the step,
-    unscaled, detached; left on the device so that no step waits for it).
-    """
-    out = net.forward_net(x)
-    mse = torch.mean((out[..., cfg.loss_start :] - y[..., cfg.loss_start :]) ** 2)
-    opt.zero_grad(set_to_none=True)
-    (cfg.loss_scale * mse).backward()
-    opt.step()
-    return mse.detach()
-
-
-class _RunningLoss:
-    """Mean training loss since the last validation check, summed on the device."""
-
-    def __init__(self) -> None:
-        self.total: float | torch.Tensor = 0.0
-        self.n = 0
-
-    def add(self, mse: torch.Tensor) -> None:
-        self.total = self.total + mse  # stays on the device: no sync per step
-        self.n += 1
-
-    def mean(self) -> float:
-        return float(self.total) / max(self.n, 1)
-
-    def pop(self) -> float:
-        """The mean, starting a new sum."""
-        mean = self.mean()
-        self.total, self.n = 0.0, 0
-        return mean
-
-
-@dataclass
-class _ModelSelection:
-    """The validation checks of a run: history rows, the best state so far, early stopping."""
+class _Checks:
+    """The validation checks of a run: history rows, the best weights so far, early stopping."""
 
     has_val: bool
     min_delta: float
@@ -472,63 +322,61 @@ class _ModelSelection:
     best_val: float = math.inf
     best_step: int = 0
     best_state: dict[str, torch.Tensor] | None = None
-    checks_since_best: int = 0
-
-    @property
-    def last_val(self) -> float:
-        """Validation loss of the latest check (rad^2; NaN before the first)."""
-        return self.rows[-1]["val_loss"] if self.rows else float("nan")
+    since_best: int = 0
 
     def check(self, net: DanaeBase, step: int, epoch: float, train_loss: float, val_loss: float) -> bool:
-        """Log a history row, keep a copy of the state when it improved on the best by more
-        than ``min_delta``; return True when training should stop early."""
+        """Log a row; copy the weights aside when they beat the best by more than ``min_delta``;
+        True when training should stop early."""
         self.rows.append(dict(step=step, epoch=epoch, train_loss=train_loss, val_loss=val_loss))
         if not self.has_val:
             return False
         if val_loss < self.best_val - self.min_delta:
-            self.best_val, self.best_step, self.checks_since_best = val_loss, step, 0
+            self.best_val, self.best_step, self.since_best = val_loss, step, 0
             self.best_state = {k: v.detach().clone() for k, v in net.state_dict().items()}
         else:
-            self.checks_since_best += 1
-        return self.patience is not None and self.checks_since_best >= self.patience
-
-    def finish(self, net: DanaeBase, restore_best: bool, last_step: int) -> tuple[int, float]:
-        """Load the best state into ``net`` when asked (else keep the last), put it in eval
-        mode; return the step and validation loss (rad^2) of the state it holds."""
-        if self.has_val and restore_best and self.best_state is not None:
-            net.load_state_dict(self.best_state)
-            best = self.best_step, self.best_val
-        else:
-            best = last_step, self.last_val
-        net.eval()
-        return best
+            self.since_best += 1
+        return self.patience is not None and self.since_best >= self.patience
 
 
-def _fit(net: DanaeBase, data: _Windows, cfg: TrainConfig, schedule: _Schedule, bar: Any,
-         device: str) -> tuple[_ModelSelection, int, bool]:
-    """The training loop: Adam steps on shuffled batches, a validation check every
-    ``schedule.val_every`` steps. Returns the checks, the steps taken and whether it stopped early."""
-    # the fused kernel updates every parameter in one call (same Adam, less overhead)
-    fused = torch.device(device).type in ("cpu", "cuda")
-    opt = torch.optim.Adam(net.parameters(), lr=cfg.lr, betas=cfg.betas, fused=fused)
-    selection = _ModelSelection(data.has_val, cfg.min_delta, cfg.patience)
-    running = _RunningLoss()
-    step, stopped_early = 0, False
+def _steps(n_windows: int, cfg: TrainConfig) -> tuple[int, int, int]:
+    """Steps per epoch, total steps (``cfg.epochs`` passes, capped at ``cfg.max_steps``) and
+    steps between validation checks (``cfg.val_every``, by default ten checks per epoch or run)."""
+    per_epoch = math.ceil(n_windows / cfg.batch_size)
+    total = per_epoch * cfg.epochs if cfg.max_steps is None else min(per_epoch * cfg.epochs, cfg.max_steps)
+    return per_epoch, total, cfg.val_every or max(1, min(per_epoch, total) // 10)
+
+
+def _fit(net: DanaeBase, train_windows: _TrainingWindows, val_windows: tuple[torch.Tensor, torch.Tensor] | None,
+         shuffle: torch.Generator, cfg: TrainConfig, bar: Any) -> tuple[_Checks, int, bool]:
+    """Chapter 3's loop: Adam steps on shuffled batches of standardised windows, a validation
+    check every ``val_every`` steps. Returns the checks, the steps taken and whether it stopped early."""
+    device = train_windows.x.device
+    n_windows = len(train_windows)
+    opt = torch.optim.Adam(net.parameters(), lr=cfg.lr, betas=cfg.betas, fused=device.type in ("cpu", "cuda"))
+    per_epoch, total, every = _steps(n_windows, cfg)
+    checks, start = _Checks(val_windows is not None, cfg.min_delta, cfg.patience), cfg.loss_start
+    running, n_running, step = torch.zeros((), device=device), 0, 0
     net.train()
-    for idx in _batches(data.n_train, cfg.batch_size, cfg.epochs, cfg.seed, device):
-        running.add(_optimisation_step(net, opt, *data.batch(idx), cfg))
-        step += 1
-        bar.update(1)
-        if step % 20 == 0 or step == schedule.total_steps:
-            bar.set_postfix(loss=f"{running.mean():.3g}", val=f"{selection.last_val:.3g}", refresh=False)
-        if schedule.validates_at(step):
-            val_loss = data.val_loss(net, cfg)
-            if selection.check(net, step, step / schedule.steps_per_epoch, running.pop(), val_loss):
-                stopped_early = True
+    while step < total:
+        perm = torch.randperm(n_windows, generator=shuffle).to(device)  # a new order each epoch
+        for i in range(0, n_windows, cfg.batch_size):
+            x, y = train_windows.batch(perm[i: i + cfg.batch_size])
+            mse = torch.mean((net.forward_net(x)[..., start:] - y[..., start:]) ** 2)
+            opt.zero_grad(set_to_none=True)
+            (cfg.loss_scale * mse).backward()
+            opt.step()
+            step += 1
+            running, n_running = running + mse.detach(), n_running + 1  # summed on the device
+            bar.update(1)
+            if step % every == 0 or step == total:  # validation check
+                val = float("nan") if val_windows is None else _mse(net, *val_windows, cfg.eval_batch_size, start)
+                if checks.check(net, step, step / per_epoch, float(running) / n_running, val):
+                    return checks, step, True
+                running, n_running = torch.zeros((), device=device), 0
+                bar.set_postfix(val=f"{val:.3g}", refresh=False)
+            if step == total:
                 break
-        if step >= schedule.total_steps:
-            break
-    return selection, step, stopped_early
+    return checks, step, False
 
 
 def _progress_bar(progress: bool, total_steps: int, arch: str) -> Any:
@@ -560,7 +408,7 @@ def train(
     config : TrainConfig, optional
         Defaults to ``TrainConfig()`` (the paper's settings plus a 10 % validation block).
     progress : bool
-        Show a tqdm bar with the running training loss and the last validation loss.
+        Show a tqdm bar with the last validation loss.
     target_masks : list of bool ndarray, each (N_i,), optional
         True where the target is usable (e.g. :func:`danae_lite.data.groundtruth.clean_mask`).
         Windows holding any unusable target sample are left out of training and
@@ -575,30 +423,39 @@ def train(
     -----
     Training windows are cut per recording with stride 1 (validation windows with
     ``config.val_stride``) and never span two recordings (nor the border between a
-    recording's training and validation blocks). They are shuffled each
-    epoch with a ``torch.Generator`` seeded from ``config.seed``; the last batch of an epoch
-    may be smaller. On CPU, with the same seed, data and thread count, two runs give
-    bit-identical networks (``torch.use_deterministic_algorithms`` is on while training).
+    recording's training and validation blocks). They are shuffled each epoch with a
+    ``torch.Generator`` seeded from ``config.seed``; the last batch of an epoch may be
+    smaller. On CPU, with the same seed, data and thread count, two runs give bit-identical
+    networks (``torch.use_deterministic_algorithms`` is on while training).
     """
     cfg = config or TrainConfig()
     xs, ys, masks = _checked_inputs(inputs, targets, target_masks)
     device = default_device(cfg.device)
-    on_cpu = torch.device(device).type == "cpu"
-    with TorchSettings(cfg.num_threads or _default_threads(), deterministic=on_cpu):
-        seed_everything(cfg.seed)
-        blocks = _split_blocks(xs, ys, masks, cfg.window, cfg.val_fraction, cfg.val_stride)
-        net = _new_network(cfg, blocks, xs[0].shape[1], ys[0].shape[1], device)
-        data = _cut_windows(blocks, net, cfg.window, device, cfg.val_stride)
-        schedule = _Schedule.of(data.n_train, cfg)
-        bar = _progress_bar(progress, schedule.total_steps, cfg.arch)
+    with TorchSettings(cfg.num_threads or max(1, torch.get_num_threads()),
+                       deterministic=torch.device(device).type == "cpu"):
+        head, tail = _split(xs, ys, masks, cfg.window, cfg.val_fraction)  # 1. split
+        seed_everything(cfg.seed)  # 2. seeds: the global one fixes the initial weights ...
+        net = _new_network(cfg, head, device)
+        shuffle = torch.Generator().manual_seed(cfg.seed)  # ... a generator of its own the shuffling
+        train_windows = _training_windows(head, net, cfg.window, device)  # 3. windows, in standard units
+        if len(train_windows) == 0:
+            raise ValueError("no training window is free of masked target samples")
+        val_windows = _cut_windows(tail, cfg.window, cfg.val_stride, device) if tail.x else None
+        if val_windows is not None and len(val_windows[0]) == 0:  # every validation window is masked
+            val_windows = None
+        bar = _progress_bar(progress, _steps(len(train_windows), cfg)[1], cfg.arch)
         t0 = time.perf_counter()
-        selection, steps, stopped_early = _fit(net, data, cfg, schedule, bar, device)
-        bar.close()
+        checks, steps, stopped_early = _fit(net, train_windows, val_windows, shuffle, cfg, bar)
         seconds = time.perf_counter() - t0
-        best_step, best_val = selection.finish(net, cfg.restore_best, steps)
-    history = pd.DataFrame(selection.rows, columns=HISTORY_COLUMNS)
+        bar.close()
+        best = val_windows is not None and cfg.restore_best and checks.best_state is not None
+        if best:
+            net.load_state_dict(checks.best_state)
+        net.eval()
+    history = pd.DataFrame(checks.rows, columns=HISTORY_COLUMNS)
     history["step"] = history["step"].astype(int)
+    best_step, best_val = (checks.best_step, checks.best_val) if best else (steps, float(history.val_loss.iloc[-1]))
     return TrainResult(model=net, config=cfg, history=history, best_step=int(best_step),
-                       best_val_loss=float(best_val) if data.has_val else float("nan"), seconds=seconds,
-                       steps=steps, n_train_windows=data.n_train, n_val_windows=data.n_val, device=str(device),
-                       stopped_early=stopped_early)
+                       best_val_loss=float(best_val) if val_windows is not None else float("nan"), seconds=seconds,
+                       steps=steps, n_train_windows=len(train_windows), n_val_windows=0 if val_windows is None else
+                       len(val_windows[0]), device=str(device), stopped_early=stopped_early)

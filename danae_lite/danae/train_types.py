@@ -15,7 +15,8 @@ from typing import Any
 
 import pandas as pd
 
-from .model import ARCHITECTURES, DanaeBase
+from .base import DanaeBase
+from .model import ARCHITECTURES
 
 __all__ = ["LOSSES", "NORMALIZATIONS", "TrainConfig", "TrainResult", "network_of"]
 

@@ -136,12 +136,12 @@ class DanaeRes(Method):
     gate : choose each angle's gain on held-out training data (default); ``False``: gain 1.
     gate_folds : inner folds of the training recordings for the gate (at most this many).
     name : leaderboard name; default ``"danae-res[<source>]"``.
-    **train_overrides : :class:`~danae_lite.danae.train.TrainConfig` fields replacing
+    **train_overrides : :class:`~danae_lite.danae.train_types.TrainConfig` fields replacing
         :data:`~danae_lite.research.features.RES_SETTINGS` and the context's settings (e.g. ``arch="paper", window=20``).
 
     Attributes (after ``fit``)
     --------------------------
-    results : seed -> :class:`~danae_lite.danae.train.TrainResult` (networks with the feature
+    results : seed -> :class:`~danae_lite.danae.train_types.TrainResult` (networks with the feature
         standardisation and the target scale in their buffers).
     gate_results : (inner fold, first seed) -> the network trained without that fold's recordings.
     gains : seed -> (3,) gain per angle (the same for every seed when the gate has inner folds).

@@ -40,7 +40,7 @@ MULTI_CHANNELS: tuple[str, ...] = (*ANGLE_CHANNELS, "roll acc", "pitch acc", "si
 magnetic heading [-], Euler rates [rad/s]."""
 CAUSAL_SETTINGS: dict[str, Any] = {"arch": "causal", "hidden": 64, "window": 64, "loss_start": 30}
 """The causal network (:class:`~danae_lite.danae.model.DanaeCausal`) as
-:class:`~danae_lite.danae.train.TrainConfig` overrides: 64 channels, dilations 1-8 (receptive field 31
+:class:`~danae_lite.danae.train_types.TrainConfig` overrides: 64 channels, dilations 1-8 (receptive field 31
 samples), trained on 64-sample windows with the loss on positions 30-63 only, where the full
 past is inside the window."""
 

@@ -317,7 +317,7 @@ def run_leaderboard(
     methods : names from :data:`danae_lite.research.baselines.METHODS`, ``danae-res[<filter>]`` or ``danae-safe[<filter>]``
         (:class:`danae_lite.research.danae_res.DanaeRes` on that filter).
     seeds : DANAE training seeds (one network per angle and seed).
-    train_config : DANAE settings; default the paper's (:class:`~danae_lite.danae.train.TrainConfig`).
+    train_config : DANAE settings; default the paper's (:class:`~danae_lite.danae.train_types.TrainConfig`).
     cache : trained-network cache folder; None (default): no cache. Entry points pass the
         folder of their settings (:class:`danae_lite.runtime.RunSettings`).
     progress : show a progress bar over the methods (and DANAE's training bars).

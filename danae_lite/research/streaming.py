@@ -29,7 +29,7 @@ from typing import Any
 import numpy as np
 import torch
 
-from ..danae.model import DanaeCausal
+from ..danae.causal import DanaeCausal
 from ..danae.train import TorchSettings, as_2d
 from ..danae.train_types import network_of
 

@@ -53,7 +53,7 @@ class DanaeOn(Method):
     inputs : ``"angles"`` (the 4 circle channels) or ``"multi"`` (:data:`~danae_lite.research.features.MULTI_CHANNELS`).
     name : leaderboard name; default ``"danae[<source>]"`` / ``"danae-multi[<source>]"``
         (``-causal`` appended for the causal architecture).
-    **train_overrides : fields of :class:`~danae_lite.danae.train.TrainConfig` replacing the
+    **train_overrides : fields of :class:`~danae_lite.danae.train_types.TrainConfig` replacing the
         context's settings (e.g. ``arch="causal", window=64, loss_start=30``).
     """
 
