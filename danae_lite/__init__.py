@@ -55,7 +55,8 @@ part of the package: ``tools/``.
 * :mod:`~danae_lite.research.ahrs.filters`  established attitude filters (Fusion, VQF, Madgwick, Mahony, RIANN)
 * :mod:`~danae_lite.research.ahrs.grid`  Madgwick's and Mahony's filters for a whole grid of gains in one pass
 * :mod:`~danae_lite.research.ahrs.broad_reference`  Madgwick's and Mahony's filters as the BROAD benchmark ran them
-* :mod:`~danae_lite.research.baselines`  classical methods of the leaderboard (tuned KF, low-pass, linear map, ...)
+* :mod:`~danae_lite.research.baselines`  classical methods of the leaderboard (constant, paper and tuned KF, library filters, ...)
+* :mod:`~danae_lite.research.post_processing`  the leaderboard's post-processing of the KF output: low-pass filters, linear window map
 * :mod:`~danae_lite.research.features`  input channels and causal network shared by the learned methods
 * :mod:`~danae_lite.research.variants`  DANAE behind any filter, multi-input, causal, ablations
 * :mod:`~danae_lite.research.danae_res`  the recommended learned denoiser (DANAE-res)
@@ -71,7 +72,8 @@ part of the package: ``tools/``.
 
 * :mod:`~danae_lite.runtime`  the run settings, read from flags and ``DANAE_*`` variables (only here)
 * :mod:`~danae_lite.book`  the common first cell of every chapter (``setup``); ``glue``/``prose``: results in the prose
-* :mod:`~danae_lite.cli_data`  the command line's data flags -> recordings
-* :mod:`~danae_lite.cli`  ``python -m danae_lite reproduce|leaderboard``
+* :mod:`~danae_lite.commands.data_flags`  the command line's data flags -> recordings; :mod:`~danae_lite.commands.prepare` what the commands share
+* :mod:`~danae_lite.commands.reproduce`, :mod:`~danae_lite.commands.leaderboard`  the two commands (the files they write)
+* :mod:`~danae_lite.cli`  ``python -m danae_lite reproduce|leaderboard``: the arguments, and the command they ask for
 """
 from ._version import __version__

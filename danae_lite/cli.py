@@ -1,40 +1,8 @@
-"""Command line: ``python -m danae_lite reproduce`` runs the paper's experiment end to end;
-``python -m danae_lite leaderboard`` runs every method of :mod:`danae_lite.research.baselines` on the
-same split (:func:`danae_lite.research.leaderboard.run_leaderboard`) and writes ``leaderboard.csv``,
-``leaderboard.json``, ``leaderboard.png`` and the grid searches into ``--out``; with
-``--experiment broad`` (the BROAD benchmark, leaderboard only) also ``broad_trials.csv``, the
-benchmark's total, heading and inclination RMSE [deg] per method and test trial. Both share the
-data flags below.
-
-The command parses arguments, resolves the data (:mod:`~danae_lite.data.experiments`,
-:mod:`~danae_lite.data.oxiod`, :mod:`~danae_lite.data.ucs`) and calls
-:func:`danae_lite.paper.pipeline.reproduce`, the same function the book's chapters call: the
-paper's KF on every recording -> one DANAE per angle and seed -> the paper's metrics
-(:mod:`~danae_lite.evaluate.metrics`) -> the paper's figure (:mod:`~danae_lite.paper.figures`). It writes
-into ``--out`` (:meth:`danae_lite.paper.reproduction.Reproduction.write`, plus ``run.json``):
-
-``metrics.json``
-    ``{"experiment", "data", "train", "test", "seeds", "kf", "danae", "paper", "seconds"}``;
-    ``kf[angle]`` and ``danae[angle]`` hold ``mean_dev``, ``max_dev``, ``rmse`` [rad]
-    (``danae`` also ``rmse_std``), ``paper`` the paper's Table 1 or 2 in the same layout (or
-    null), ``seconds`` the wall time of the KF, of training + inference, and of the whole
-    pipeline (data loading excluded).
-``metrics.csv``
-    The same numbers, one row per method and angle, with the paper's values beside them.
-``seed_table.csv``
-    Per test recording, angle, seed and method: the metrics behind the means.
-``figureN_<angle>.png`` / ``figureN_<angle>.csv``
-    The paper's figure recreated (Figure 1 roll for OxIOD, Figure 2 pitch for UCS) and the
-    plotted samples (``time_s``, ``ground_truth``, ``kf``, ``danae``).
-``run.json``
-    How the run was made: the command, the data note, fast mode, training settings, device.
-``models/`` (only with ``--save-models``)
-    One checkpoint per angle and seed (:func:`danae_lite.danae.checkpoints.save`).
-
-Metrics are computed on all samples of all test recordings taken together, with errors
-wrapped to [-pi, pi). DANAE numbers use the overlap-average reconstruction (every sample is
-covered) and are means over seeds; ``rmse_std`` is the sample standard deviation of the RMSE
-over seeds (NaN in the CSV and null in the JSON with one seed).
+"""Command line: ``python -m danae_lite reproduce`` runs the paper's experiment end to end
+(:mod:`danae_lite.commands.reproduce`, which lists the files it writes); ``python -m danae_lite
+leaderboard`` runs every method on the same split, or cross-validates with ``--folds``
+(:mod:`danae_lite.commands.leaderboard`). This module parses the arguments and runs the one
+command asked for; both share the data flags (:mod:`danae_lite.commands.data_flags`).
 
 Exit status: 0 on success, 2 for a usage or data error (a one-line message on stderr),
 130 when interrupted.
@@ -42,48 +10,21 @@ Exit status: 0 on success, 2 for a usage or data error (a one-line message on st
 from __future__ import annotations
 
 import argparse
-import json
-import shlex
 import sys
 from collections.abc import Sequence
-from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from .runtime import (CACHE_ENV, CACHE_GB_ENV, DATA_ENV, DEFAULT_CACHE_GB, FAST_ENV,
                       FAST_EPOCHS, FAST_MAX_STEPS, FAST_SEEDS, FULL_SEEDS, JOBS_ENV, SCHEDULER_ENV)
 from .data.experiments import (FAST_DURATION, FAST_SAMPLES, OXIOD_TEST, OXIOD_TRAIN,
                                PAPER_SPLIT_FOLDER, PAPER_SPLIT_TEST, PAPER_SPLIT_TRAIN,
                                TRAIN_FRACTION)
-from .cli_data import UsageError, load_data
 from .data import broad as broad_data
-from .data import oxiod_motions
 from .data.oxiod_motions import FAST_MOTION_RECORDINGS
-
-if TYPE_CHECKING:
-    from .runtime import RunSettings
-    from .paper.reproduction import Reproduction
-    from .danae.train_types import TrainConfig
+from .commands.data_flags import UsageError
+from .commands.prepare import EXPERIMENT_ANGLES, PAPER_EPOCHS, PROG, one_line
 
 __all__ = ["main", "build_parser"]
-
-PROG = "python -m danae_lite"
-EXPERIMENT_ANGLES: dict[str, tuple[str, ...]] = {"oxiod": ("roll", "pitch", "yaw"), "ucs": ("roll", "pitch"),
-                                                  "broad": ("roll", "pitch", "yaw")}
-"""Angles evaluated per experiment (the paper reports no UCS yaw; it has no BROAD experiment)."""
-PAPER_EPOCHS: dict[str, int] = {"oxiod": 1, "ucs": 100, "broad": 1}
-"""Training epochs stated in the paper (BROAD: the OxIOD setting)."""
-LEADERBOARD_ONLY = ("broad",)
-"""Experiments the paper did not run: ``leaderboard`` only, no ``reproduce``."""
-
-
-def __getattr__(name: str) -> Any:
-    """``CSV_COLUMNS`` is :data:`danae_lite.paper.reproduction.CSV_COLUMNS`, imported on first use (the
-    pipeline imports torch, which ``--help`` does not need)."""
-    if name == "CSV_COLUMNS":
-        from .paper.reproduction import CSV_COLUMNS
-
-        return CSV_COLUMNS
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
 
 
 # ---------------------------------------------------------------------------------------
@@ -297,272 +238,15 @@ def main(argv: Sequence[str] | None = None) -> int:
     args.argv = list(sys.argv[1:] if argv is None else argv)
     from .data.recording import DataError
     from .danae.checkpoints import CheckpointError
-
+    if args.command == "leaderboard":  # only the command asked for is imported
+        from .commands.leaderboard import run
+    else:
+        from .commands.reproduce import run
     try:
-        return leaderboard(args) if args.command == "leaderboard" else reproduce(args)
+        return run(args)
     except (UsageError, DataError, CheckpointError, OSError) as err:
-        print(f"{PROG} {args.command}: error: {_one_line(err)}", file=sys.stderr)
+        print(f"{PROG} {args.command}: error: {one_line(err)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"{PROG} {args.command}: interrupted", file=sys.stderr)
         return 130
-
-
-def _one_line(err: BaseException) -> str:
-    text = " ".join(str(err).split())
-    if isinstance(err, OSError) and err.filename is not None and str(err.filename) not in text:
-        text = f"{err.filename}: {text}"
-    return text or type(err).__name__
-
-
-def _check_device(device: str | None) -> str:
-    import torch
-
-    try:
-        dev = torch.device(device or "cpu")
-    except (RuntimeError, ValueError) as err:
-        raise UsageError(f"--device {device}: not a torch device ({_one_line(err)})") from None
-    if dev.type == "cuda" and not torch.cuda.is_available():
-        raise UsageError(f"--device {device}: CUDA is not available on this machine; use --device cpu")
-    return str(dev)
-
-
-def _out_dir(args: argparse.Namespace) -> Path:
-    out_dir = Path(args.out if args.out is not None else f"runs/{args.command}-{args.experiment}").expanduser()
-    if out_dir.exists() and not out_dir.is_dir():
-        raise UsageError(f"--out {out_dir}: exists and is not a folder")
-    return out_dir
-
-
-def _train_config(args: argparse.Namespace, settings: RunSettings) -> TrainConfig:
-    """The training settings: the paper's epochs, capped by fast mode (:meth:`RunSettings.train_config`),
-    then ``--epochs``/``--max-steps``/``--threads`` as given."""
-    from dataclasses import replace
-
-    from .danae.train_types import TrainConfig
-
-    # the paper's settings, validated on windows that tile the tails as in chapters 3-4
-    config = settings.train_config(TrainConfig(epochs=PAPER_EPOCHS[args.experiment], val_stride=20))
-    given = {k: v for k, v in (("epochs", args.epochs), ("max_steps", args.max_steps),
-                               ("num_threads", args.threads)) if v is not None}
-    return replace(config, **given)
-
-
-def _log(line: str) -> None:
-    print(line, flush=True)
-
-
-def _prepare(args: argparse.Namespace) -> tuple[RunSettings, Path, Any, TrainConfig]:
-    """Shared start of both subcommands: run settings, output folder, data, training settings."""
-    from .runtime import RunSettings
-
-    seeds = None if args.seeds is None else tuple(int(s) for s in args.seeds)  # None: the mode's default
-    if seeds is not None and len(set(seeds)) != len(seeds):
-        raise UsageError(f"--seeds {' '.join(map(str, seeds))}: each seed may appear only once")
-    device = _check_device(args.device)
-    try:
-        settings = RunSettings.from_env(fast=args.fast, data=args.data_dir, cache=args.cache, n_jobs=args.jobs,
-                                        seeds=seeds, device=device, scheduler_address=args.scheduler)
-    except ValueError as err:  # an unrecognised DANAE_FAST, DANAE_JOBS or scheduler value
-        raise UsageError(str(err)) from None
-    if settings.scheduler is not None:
-        from .danae.networks import use_scheduler
-
-        try:
-            use_scheduler(settings.scheduler)
-        except OSError as err:  # no scheduler answers at that address
-            raise UsageError(f"--scheduler {settings.scheduler}: {_one_line(err)}") from None
-    out_dir = _out_dir(args)
-
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import torch
-
-    from .paper import pipeline
-
-    exp = load_data(args, settings)
-    if args.threads:
-        torch.set_num_threads(args.threads)
-    config = _train_config(args, settings)
-    pipeline.check_lengths(exp, config)
-    return settings, out_dir, exp, config
-
-
-def reproduce(args: argparse.Namespace) -> int:
-    """Run the ``reproduce`` subcommand (:func:`danae_lite.paper.pipeline.reproduce`); returns the exit status."""
-    from .paper import pipeline
-
-    if args.experiment in LEADERBOARD_ONLY:
-        raise UsageError(f"--experiment {args.experiment}: the paper has no such experiment to reproduce; "
-                         f"run '{PROG} leaderboard --experiment {args.experiment}'")
-    settings, out_dir, exp, config = _prepare(args)
-    fast, seeds, device = settings.fast, list(settings.seeds), settings.device
-    angles = EXPERIMENT_ANGLES[args.experiment]
-
-    print(exp.note)
-    print(f"experiment {exp.name} | data: {exp.data} | mode: {'fast' if fast else 'full'} | "
-          f"train {', '.join(r.name for r in exp.train)} | test {', '.join(r.name for r in exp.test)}")
-    print(f"training: angles {', '.join(angles)} | seeds {' '.join(map(str, seeds))} | epochs {config.epochs} | "
-          f"max steps {config.max_steps if config.max_steps is not None else 'none'} | device {device}", flush=True)
-    rep = pipeline.reproduce(exp, angles=angles, seeds=seeds, config=config, progress=sys.stdout.isatty(),
-                             cache=settings.cache, jobs=settings.jobs, log=_log)
-    written = rep.write(out_dir)
-    if args.save_models:
-        written += _save_models(rep, out_dir / "models")
-    written.append(_write_run_json(args, rep, fast, device, out_dir))
-
-    _print_summary(rep)
-    print("wrote " + ", ".join(str(p) for p in written))
-    return 0
-
-
-def leaderboard(args: argparse.Namespace) -> int:
-    """Run the ``leaderboard`` subcommand (:func:`danae_lite.research.leaderboard.run_leaderboard`)."""
-    import time
-
-    import pandas as pd
-
-    from .research.leaderboard import run_leaderboard
-
-    if args.folds:
-        return folds(args)
-    settings, out_dir, exp, config = _prepare(args)
-    fast, seeds, device = settings.fast, list(settings.seeds), settings.device
-    methods = args.methods or _method_names()
-    print(exp.note)
-    print(f"leaderboard {exp.name} | data: {exp.data} | mode: {'fast' if fast else 'full'} | "
-          f"train {', '.join(r.name for r in exp.train)} | test {', '.join(r.name for r in exp.test)} | "
-          f"methods {' '.join(methods)} | DANAE seeds {' '.join(map(str, seeds))} | device {device}", flush=True)
-    t0 = time.perf_counter()
-    board = run_leaderboard(exp, methods=methods, seeds=seeds, train_config=config, progress=sys.stdout.isatty(),
-                            cache=settings.cache, jobs=settings.jobs)
-    written = board.write(out_dir)
-    if args.estimates:
-        written.update(board.write_estimates(out_dir, list(board.methods)))
-    with pd.option_context("display.float_format", "{:.4f}".format, "display.width", 140):
-        for subset in ("all", "clean"):
-            print(f"\nRMSE [rad] on {subset} test samples (errors wrapped; DANAE: mean over seeds):")
-            print(board.wide("rmse", subset).to_string(na_rep="-"))
-    if exp.name == "broad":
-        trials = board.trial_metrics()
-        means = trials.groupby("method", sort=False)[["causal", "total_rmse_deg", "heading_rmse_deg",
-                                                     "inclination_rmse_deg"]].agg(
-            {"causal": "first", "total_rmse_deg": "mean", "heading_rmse_deg": "mean", "inclination_rmse_deg": "mean"})
-        with pd.option_context("display.float_format", "{:.2f}".format, "display.width", 140):
-            print(f"\nBROAD metric [deg], mean over the {len(exp.test)} test trials (per trial: broad_trials.csv):")
-            print(means.to_string(na_rep="-"))
-    print(f"\nalignment: {board.alignment.summary()}")
-    print(f"time: {time.perf_counter() - t0:.1f} s; " + ", ".join(f"{k} {v:.1f} s" for k, v in board.seconds.items()))
-    print("wrote " + ", ".join(str(p) for p in written.values()))
-    return 0
-
-
-def folds(args: argparse.Namespace) -> int:
-    """``leaderboard --folds``: :func:`danae_lite.research.crossval.run_splits` on the experiment's protocol."""
-    import time
-
-    import pandas as pd
-
-    from .research import crossval
-
-    if args.experiment == "ucs":
-        raise UsageError("--folds: ucs is one recording, there is nothing to hold out; use oxiod or broad")
-    if args.estimates:
-        raise UsageError("--estimates writes one split's per-sample output; leave it out with --folds")
-    if args.train is not None or args.test is not None or args.split != "default":
-        raise UsageError("--folds chooses the training and test recordings itself; leave out --train/--test/--split")
-    settings, out_dir, _, config = _prepare(args)
-    methods = args.methods or _method_names()
-    if args.experiment == "oxiod":
-        motions = oxiod_motions.load(settings.data_dir, fast=settings.fast, verbose=False)
-        recs = motions.recordings
-        splits = [s for m, r in recs.items() if len(r) > 1 for s in crossval.leave_one_out(r, m)]
-        others = {m: r for m, r in recs.items() if m != "handheld"}
-        if others:
-            splits.append(crossval.transfer(recs["handheld"], others, "handheld"))
-        note, data, aligned = motions.note, motions.data, False
-    else:
-        exp = load_data(args, settings)
-        splits, note, data, aligned = [crossval.broad_transfer(exp.train, exp.test)], exp.note, exp.data, True
-    print(note)
-    print(f"folds {args.experiment} | data: {data} | mode: {'fast' if settings.fast else 'full'} | {len(splits)} "
-          f"splits | methods {' '.join(methods)} | seeds {' '.join(map(str, settings.seeds))} | jobs {settings.jobs}",
-          flush=True)
-    t0 = time.perf_counter()
-    cv = crossval.run_splits(splits, name=args.experiment, data=data, aligned=aligned, methods=methods,
-                             seeds=settings.seeds, train_config=config, cache=settings.cache, jobs=settings.jobs,
-                             progress=sys.stdout.isatty())
-    written = cv.write(out_dir)
-    with pd.option_context("display.float_format", "{:.4f}".format, "display.width", 160):
-        for protocol in dict.fromkeys(cv.rows.protocol):
-            print(f"\nRMSE [rad] on clean samples, {protocol}: mean and std over held-out recordings")
-            print(cv.summary("clean", protocol, by_group=True).to_string(na_rep="-"))
-    if not cv.trials.empty:
-        with pd.option_context("display.float_format", "{:.2f}".format, "display.width", 160):
-            print("\nBROAD metric [deg], mean and std over the held-out trials:")
-            print(cv.trial_summary().to_string(na_rep="-"))
-    if cv.corrections():
-        with pd.option_context("display.float_format", "{:.1f}".format, "display.width", 160):
-            print("\nNo harm? Each correction against the filter it corrects, per held-out recording "
-                  "(change: error reduction [%], negative = worse than the filter):")
-            print(cv.no_harm_summary().to_string())
-    print(f"time: {time.perf_counter() - t0:.1f} s")
-    print("wrote " + ", ".join(str(p) for p in written.values()))
-    return 0
-
-
-def _save_models(rep: Reproduction, folder: Path) -> list[Path]:
-    """One checkpoint per angle and seed (:func:`danae_lite.danae.checkpoints.save`)."""
-    from .danae.checkpoints import save
-
-    exp = rep.experiment
-    return [save(res, folder / f"danae_{angle}_seed{seed}.pt",
-                 metadata={"experiment": exp.name, "angle": angle, "seed": seed, "train": rep.train})
-            for (angle, seed), res in rep.study.results.items()]
-
-
-def _write_run_json(args: argparse.Namespace, rep: Reproduction, fast: bool, device: str, out_dir: Path) -> Path:
-    """``run.json``: the command, data note, mode, settings and the figure shown."""
-    import torch
-
-    from .paper.figures import PAPER_FIGURES
-
-    exp = rep.experiment
-    spec = PAPER_FIGURES[exp.name]
-    series = rep.figure_series(spec)
-    run = {
-        "command": " ".join(shlex.quote(a) for a in [PROG, *getattr(args, "argv", [])]),
-        "note": exp.note, "fast": fast, "device": device, "threads": torch.get_num_threads(),
-        "kf_config": repr(rep.kf_config), "train_config": rep.config.to_dict(),
-        "samples": {r.name: len(r) for r in [*exp.train, *exp.test]},
-        "figure": {"file": f"{spec.filename}.png", "test": rep.test[0],
-                   "samples": [int(series.index[0]), int(series.index[-1]) + 1], "seed": rep.seeds[0]},
-    }
-    path = out_dir / "run.json"
-    path.write_text(json.dumps(run, indent=2) + "\n")
-    return path
-
-
-def _print_summary(rep: Reproduction) -> None:
-    """Print the metric table [rad] and the RMSE reductions [%] next to the paper's."""
-    import pandas as pd
-
-    from .evaluate.metrics import reduction_pct
-
-    result = rep.to_json()
-    shown = rep.metrics_frame().set_index(["method", "angle"])
-    with pd.option_context("display.float_format", "{:.4f}".format, "display.width", 140):
-        print(f"\nmetrics [rad] on the test recordings ({result['data']} data; DANAE: mean over seeds "
-              f"{' '.join(map(str, result['seeds']))}):")
-        print(shown.to_string(na_rep="-"))
-    red = []
-    for angle, kf in result["kf"].items():
-        ours = reduction_pct(result["danae"][angle]["rmse"], kf["rmse"])
-        paper = result["paper"] or {}
-        p_kf, p_dn = paper.get("kf", {}).get(angle), paper.get("danae", {}).get(angle)
-        theirs = f"{reduction_pct(p_dn['rmse'], p_kf['rmse']):.1f} %" if p_kf and p_dn else "-"
-        red.append(f"{angle} {ours:.1f} % (paper {theirs})")
-    print("RMSE reduction by DANAE: " + "; ".join(red))
-    s = result["seconds"]
-    print(f"time: KF {s['kf']:.1f} s, DANAE {s['train']:.1f} s, total {s['total']:.1f} s")

@@ -25,7 +25,7 @@ import pytest
 PACKAGE = Path(__file__).resolve().parents[1] / "danae_lite"
 SETTINGS = "runtime"
 ROOMS = ("_version", "angles", "data", "kalman", "danae", "evaluate", "plots", "paper", "research",
-         "runtime", "book", "cli_data", "cli", "__main__", "__init__")
+         "runtime", "book", "commands", "cli", "__main__", "__init__")
 """The package's rooms (a folder or a module at the top), in the order data flows through them;
 a room imports only rooms listed before it."""
 

@@ -13,6 +13,7 @@ import pytest
 
 from conftest import synthetic_oxiod, write_rows, write_ucs
 from danae_lite import cli
+from danae_lite.paper.reproduction import CSV_COLUMNS
 from danae_lite.data import experiments
 from danae_lite.evaluate import metrics
 from danae_lite.data import oxiod_motions
@@ -71,7 +72,7 @@ def check_outputs(out: Path, experiment: str, data: str, seeds: list[int]) -> di
     assert all(isinstance(v, float) and v >= 0 for v in s.values()) and s["total"] >= s["kf"] + s["train"]
 
     table = pd.read_csv(out / "metrics.csv")
-    assert list(table.columns) == list(cli.CSV_COLUMNS)
+    assert list(table.columns) == list(CSV_COLUMNS)
     assert list(zip(table.method, table.angle)) == [(me, a) for me in ("kf", "danae") for a in angles]
     for row in table.itertuples():
         ours, paper = m[row.method][row.angle], m["paper"][row.method][row.angle]

@@ -7,7 +7,7 @@ import pytest
 from scipy import signal
 from scipy.spatial.transform import Rotation
 
-from danae_lite.research import baselines
+from danae_lite.research import baselines, post_processing
 from danae_lite.research.ahrs import filters
 from danae_lite.data.alignment import FrameAlignment
 from danae_lite.angles import angle_diff
@@ -194,37 +194,37 @@ def test_butterworth_is_the_digital_filter_with_the_stated_cutoff():
     # zero-phase (forward-backward) filtering squares the magnitude: -6.02 dB at the cut-off, DC unchanged
     for f, gain in ((0.0, 1.0), (fc, 0.5)):
         x = np.cos(2 * np.pi * f * t)
-        y = baselines.butterworth_lowpass(x, fc, fs)
+        y = post_processing.butterworth_lowpass(x, fc, fs)
         mid = slice(5000, 15000)
         assert np.sqrt(np.mean(y[mid] ** 2) / np.mean(x[mid] ** 2)) == pytest.approx(gain, rel=1e-3)
     b, a = signal.butter(2, fc / (fs / 2))  # the same filter from the normalised frequency
     w, h = signal.freqz(b, a, worN=[fc], fs=fs)
     assert abs(h[0]) == pytest.approx(1 / np.sqrt(2), rel=1e-9)
     with pytest.raises(ValueError, match="Nyquist"):
-        baselines.butterworth_lowpass(t, 60.0, fs)
+        post_processing.butterworth_lowpass(t, 60.0, fs)
 
 
 def test_moving_average_by_hand():
     x = np.array([0.0, 3.0, 6.0, 3.0, 0.0])
-    np.testing.assert_allclose(baselines.moving_average(x, 3), [1.0, 3.0, 4.0, 3.0, 1.0])
+    np.testing.assert_allclose(post_processing.moving_average(x, 3), [1.0, 3.0, 4.0, 3.0, 1.0])
     with pytest.raises(ValueError, match="odd"):
-        baselines.moving_average(x, 4)
+        post_processing.moving_average(x, 4)
 
 
 def test_linear_map_recovers_a_known_linear_corruption_exactly():
     rng = np.random.default_rng(0)
     truth = [np.cumsum(rng.normal(0, 0.05, n)) for n in (500, 700)]
     est = [0.8 * y + 0.1 for y in truth]  # scale and offset: undone exactly by an affine window map
-    W = baselines.fit_linear_map(est, truth)
+    W = post_processing.fit_linear_map(est, truth)
     for x, y in zip(est, truth):
-        np.testing.assert_allclose(baselines.apply_linear_map(W, x), y, atol=1e-9)
+        np.testing.assert_allclose(post_processing.apply_linear_map(W, x), y, atol=1e-9)
     # masked targets are left out of the fit: corrupting them changes nothing
     bad = [y.copy() for y in truth]
     bad[0][100:110] += 5.0
     mask = [np.ones(len(y), bool) for y in truth]
     mask[0][100:110] = False
-    W_masked = baselines.fit_linear_map(est, bad, masks=mask)
-    np.testing.assert_allclose(baselines.apply_linear_map(W_masked, est[1]), truth[1], atol=1e-9)
+    W_masked = post_processing.fit_linear_map(est, bad, masks=mask)
+    np.testing.assert_allclose(post_processing.apply_linear_map(W_masked, est[1]), truth[1], atol=1e-9)
 
 
 @pytest.mark.parametrize("name", ["fusion", "vqf", "madgwick", "mahony"])

@@ -210,7 +210,7 @@ class Reproduction:
 
     def to_json(self) -> dict[str, Any]:
         """The content of ``metrics.json``: ``{"experiment", "data", "train", "test", "seeds",
-        "kf", "danae", "paper", "seconds"}`` (see :mod:`danae_lite.cli`)."""
+        "kf", "danae", "paper", "seconds"}`` (see :mod:`danae_lite.commands.reproduce`)."""
         return {
             "experiment": self.experiment.name,
             "data": self.data,

@@ -1,6 +1,6 @@
 """The command line's data flags -> recordings: ``--experiment``, ``--data-dir``, ``--train`` /
 ``--test`` and ``--split`` resolved to a :class:`~danae_lite.data.experiments.Experiment` (used by
-:mod:`danae_lite.cli`; every mistake is a :class:`UsageError` naming the flag and the file)."""
+both subcommands; every mistake is a :class:`UsageError` naming the flag and the file)."""
 from __future__ import annotations
 
 import argparse
@@ -9,13 +9,13 @@ from collections.abc import Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from .runtime import DATA_ENV
-from .data.experiments import (FAST_SAMPLES, PAPER_SPLIT_FOLDER, PAPER_SPLIT_TEST,
+from ..runtime import DATA_ENV
+from ..data.experiments import (FAST_SAMPLES, PAPER_SPLIT_FOLDER, PAPER_SPLIT_TEST,
                                PAPER_SPLIT_TRAIN)
-from .data import broad as broad_data
+from ..data import broad as broad_data
 
 if TYPE_CHECKING:
-    from .runtime import RunSettings
+    from ..runtime import RunSettings
 
 __all__ = ["UsageError", "load_data"]
 
@@ -72,7 +72,7 @@ def _unique_names(train: list[Any], test: list[Any]) -> tuple[list[Any], list[An
 
 def _paper_split(args: argparse.Namespace, name: str, base: Path | None) -> argparse.Namespace:
     """``--split paper``: the arguments with ``--train``/``--test`` set to the paper's files."""
-    from .data import experiments
+    from ..data import experiments
 
     if name != "oxiod":
         raise UsageError(f"--split paper is OxIOD's split; --experiment is {name}")
@@ -93,7 +93,7 @@ def _paper_split(args: argparse.Namespace, name: str, base: Path | None) -> argp
 
 def load_data(args: argparse.Namespace, settings: RunSettings) -> Any:
     """Resolve the experiment's recordings from the arguments; returns an experiments.Experiment."""
-    from .data import experiments
+    from ..data import experiments
 
     name, fast = args.experiment, settings.fast
     base = settings.data_dir  # --data-dir, else $DANAE_DATA (resolved, checked) or None
@@ -120,7 +120,7 @@ def load_data(args: argparse.Namespace, settings: RunSettings) -> Any:
 
 def _ucs_files(args: argparse.Namespace) -> Any:
     """The UCS experiment of ``--train``/``--test`` files: one file split 80/20, or each side whole."""
-    from .data import experiments, ucs
+    from ..data import experiments, ucs
 
     train_p = _ucs_path(args.train, "--train") if args.train else []
     test_p = _ucs_path(args.test, "--test") if args.test else []
@@ -145,7 +145,7 @@ def _ucs_files(args: argparse.Namespace) -> Any:
 def _oxiod_files_experiment(args: argparse.Namespace, base: Path | None, fast: bool) -> Any:
     """The OxIOD experiment of ``--train``/``--test`` files; a side left out comes from the data
     directory's default recordings."""
-    from .data import experiments
+    from ..data import experiments
 
     syn = None
     if args.train is None or args.test is None:
@@ -165,7 +165,7 @@ def _oxiod_files_experiment(args: argparse.Namespace, base: Path | None, fast: b
 
 def _default_root(args: argparse.Namespace, base: Path | None, name: str, what: str) -> Path:
     """``<data dir>/<name>`` for the side of ``--train``/``--test`` left out; UsageError when absent."""
-    from .data import experiments
+    from ..data import experiments
 
     root = {"oxiod": experiments.oxiod_root, "broad": broad_data.root}[name](base) if base is not None else None
     if root is None:
@@ -194,7 +194,7 @@ def _broad_trial_files(items: Sequence[str], flag: str) -> list[Path]:
 
 def _broad_files(args: argparse.Namespace, base: Path | None, fast: bool) -> Any:
     """BROAD trials named by ``--train``/``--test``; a side left out takes the data directory's default."""
-    from .data import experiments
+    from ..data import experiments
 
     default = None
     if args.train is None or args.test is None:
@@ -217,7 +217,3 @@ def _broad_files(args: argparse.Namespace, base: Path | None, fast: bool) -> Any
         note += f" Warning: {', '.join(map(str, sorted(overlap)))} is used for training and testing."
     return experiments.Experiment("broad", "real", train, test, note, aligned=True)
 
-
-# ---------------------------------------------------------------------------------------
-# the run
-# ---------------------------------------------------------------------------------------
