@@ -19,6 +19,8 @@ part of the package: ``tools/``.
 * :mod:`~danae_lite.data.alignment`  sensor-to-body rotation and magnetic north from training data
 * :mod:`~danae_lite.data.broad`  the BROAD benchmark's trials and its train/test split
 * :mod:`~danae_lite.data.oxiod_motions`  the OxIOD recordings grouped by motion, for cross-validation
+* :mod:`~danae_lite.data.inventory`  a data folder file by file against the book's reference copies (SHA-256, rows, columns)
+* :mod:`~danae_lite.data.fetch`  the public BROAD trials downloaded with pooch, checksums verified
 
 **The Kalman filter** (``kalman/``)
 
@@ -73,7 +75,8 @@ part of the package: ``tools/``.
 * :mod:`~danae_lite.runtime`  the run settings, read from flags and ``DANAE_*`` variables (only here)
 * :mod:`~danae_lite.book`  the common first cell of every chapter (``setup``); ``glue``/``prose``: results in the prose
 * :mod:`~danae_lite.commands.data_flags`  the command line's data flags -> recordings; :mod:`~danae_lite.commands.prepare` what the commands share
-* :mod:`~danae_lite.commands.reproduce`, :mod:`~danae_lite.commands.leaderboard`  the two commands (the files they write)
-* :mod:`~danae_lite.cli`  ``python -m danae_lite reproduce|leaderboard``: the arguments, and the command they ask for
+* :mod:`~danae_lite.commands.method_names`  the leaderboard's method names as a static table (a fast ``--help``)
+* :mod:`~danae_lite.commands.data`, :mod:`~danae_lite.commands.reproduce`, :mod:`~danae_lite.commands.leaderboard`  the commands (the files they write)
+* :mod:`~danae_lite.cli`  ``python -m danae_lite data|reproduce|leaderboard``: the arguments, and the command they ask for
 """
 from ._version import __version__

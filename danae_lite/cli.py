@@ -1,11 +1,14 @@
-"""Command line: ``python -m danae_lite reproduce`` runs the paper's experiment end to end
-(:mod:`danae_lite.commands.reproduce`, which lists the files it writes); ``python -m danae_lite
-leaderboard`` runs every method on the same split, or cross-validates with ``--folds``
-(:mod:`danae_lite.commands.leaderboard`). This module parses the arguments and runs the one
-command asked for; both share the data flags (:mod:`danae_lite.commands.data_flags`).
+"""Command line: ``python -m danae_lite data where|check|fetch`` shows, checks and downloads the
+data (:mod:`danae_lite.commands.data`); ``python -m danae_lite reproduce`` runs the paper's
+experiment end to end (:mod:`danae_lite.commands.reproduce`, which lists the files it writes);
+``python -m danae_lite leaderboard`` runs every method on the same split, or cross-validates with
+``--folds`` (:mod:`danae_lite.commands.leaderboard`). This module parses the arguments and runs
+the one command asked for; the last two share the data flags
+(:mod:`danae_lite.commands.data_flags`). Building the parser imports no torch and no pandas, so
+``--help`` answers at once.
 
 Exit status: 0 on success, 2 for a usage or data error (a one-line message on stderr),
-130 when interrupted.
+1 when ``data check`` finds a problem or ``data fetch`` fails, 130 when interrupted.
 """
 from __future__ import annotations
 
@@ -21,7 +24,11 @@ from .data.experiments import (FAST_DURATION, FAST_SAMPLES, OXIOD_TEST, OXIOD_TR
                                TRAIN_FRACTION)
 from .data import broad as broad_data
 from .data.oxiod_motions import FAST_MOTION_RECORDINGS
+from .data.fetch import BROAD_URL
+from .data.inventory import EXPERIMENTS
+from ._version import __version__
 from .commands.data_flags import UsageError
+from .commands.method_names import METHOD_NAMES, is_method_name
 from .commands.prepare import EXPERIMENT_ANGLES, PAPER_EPOCHS, PROG, one_line
 
 __all__ = ["main", "build_parser"]
@@ -101,12 +108,15 @@ def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(
         prog=PROG,
         description="Reproduce the DANAE paper (KF -> DANAE -> metrics -> figure) from the command line.",
-        epilog=("the book: re-executing its chapters and storing their outputs is book maintenance, not\n"
-                "part of this package: from the repository root, python -m tools.execute (make execute;\n"
-                "--help lists its flags)."),
+        epilog=("start with: python -m danae_lite data check (is the data folder the book's copy?)\n\n"
+                "the book: its chapters are re-executed, and their outputs stored, from the repository\n"
+                "root with python -m tools.execute (make execute; --help lists its flags); make book\n"
+                "renders them into _build/html."),
         formatter_class=argparse.RawDescriptionHelpFormatter,
     )
+    parser.add_argument("--version", action="version", version=f"%(prog)s (danae_lite) {__version__}")
     sub = parser.add_subparsers(dest="command", metavar="COMMAND")
+    _add_data(sub)
     rep = sub.add_parser(
         "reproduce",
         help="run the paper's experiment on one dataset and write metrics, figure and data",
@@ -141,7 +151,7 @@ def _add_leaderboard(sub: Any) -> None:
     )
     _add_common(lb, "leaderboard")
     lb.add_argument("--methods", metavar="NAME", nargs="+", default=None, type=_method_name,
-                    help="methods to run (default: all): " + " ".join(_method_names())
+                    help="methods to run (default: all): " + " ".join(METHOD_NAMES)
                     + "; danae-res[FILTER], the recommended denoiser on FILTER's output (e.g. danae-res[vqf]); "
                     "danae-safe[FILTER], DANAE-res with a per-sample fallback and an error bar")
     lb.add_argument("--estimates", action="store_true",
@@ -160,19 +170,47 @@ def _add_leaderboard(sub: Any) -> None:
 
 def _method_name(name: str) -> str:
     """``--methods`` value check: a leaderboard method, ``danae-res[<filter>]`` or ``danae-safe[<filter>]``."""
-    from .research.baselines import is_method_name
-
     if not is_method_name(name):
         raise argparse.ArgumentTypeError(
-            f"invalid choice: {name!r} (choose from {', '.join(_method_names())}, danae-res[<filter>] "
+            f"invalid choice: {name!r} (choose from {', '.join(METHOD_NAMES)}, danae-res[<filter>] "
             "or danae-safe[<filter>])")
     return name
 
 
-def _method_names() -> list[str]:
-    from .research.baselines import METHODS
-
-    return list(METHODS)
+def _add_data(sub: Any) -> None:
+    """The ``data`` command and its subcommands, on the subparsers ``sub``."""
+    data = sub.add_parser(
+        "data", help="the data folder: where it is, whether it is the book's copy, download BROAD",
+        description="The data folder (--data-dir, else $DANAE_DATA): where each experiment reads, whether "
+                    "its files are the book's reference copies, and the public BROAD trials downloaded into it.",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    cmds = data.add_subparsers(dest="data_command", metavar="SUBCOMMAND", required=True)
+    folder_help = f"the data folder. Default: ${DATA_ENV}"
+    where = cmds.add_parser("where", help="the data folder in use and what each experiment would read from it",
+                            description="Print the data folder in use and, per dataset, the files the book "
+                                        "reads from it and what the chapters do without them.")
+    where.add_argument("--data-dir", metavar="DIR", default=None, help=folder_help)
+    check = cmds.add_parser(
+        "check", help="per dataset: files present, missing, malformed or different from the book's copy",
+        description="Check every file the book reads: present or missing; read by the book's loader (wrong "
+                    "columns, rows or an unreadable .mat are 'malformed', naming the file and line); SHA-256 "
+                    "against the book's reference copies ('differs': the numbers will differ from the book's). "
+                    "UCS has no reference copy: its format is checked only.",
+        epilog="exit status: 0 when everything present is the book's copy (an optional dataset may be absent);\n"
+               "1 when OxIOD handheld is missing, a file is malformed or differs, or a dataset is present in part.",
+        formatter_class=argparse.RawDescriptionHelpFormatter)
+    check.add_argument("--data-dir", metavar="DIR", default=None, help=folder_help)
+    check.add_argument("--experiment", nargs="+", choices=tuple(EXPERIMENTS), default=None,
+                       help="check only these experiments' datasets. Default: all")
+    fetch = cmds.add_parser(
+        "fetch", help="download the BROAD trials the book uses (CC BY 4.0), checksums verified",
+        description="Download exactly the BROAD trials the book uses, each from a URL pinned to one commit of "
+                    "the benchmark's repository, verify each against the book's SHA-256 and move it into "
+                    "<data>/broad/data_mat only then (a verified file is kept: a second run resumes). OxIOD "
+                    "and UCS are distributed by their authors: it prints where to get them and where they go.")
+    fetch.add_argument("--data-dir", metavar="DIR", default=None, help=folder_help + " (created if needed)")
+    fetch.add_argument("--url", metavar="URL", default=BROAD_URL,
+                       help="base URL of the BROAD repository's files (a mirror). Default: %(default)s")
 
 
 def _add_common(p: argparse.ArgumentParser, command: str) -> None:
@@ -202,8 +240,9 @@ def _add_common(p: argparse.ArgumentParser, command: str) -> None:
     p.add_argument("--max-steps", metavar="N", type=_positive_int, default=None,
                      help=f"cap on optimiser steps per network. Default: {FAST_MAX_STEPS} in fast mode, "
                           "no cap otherwise")
-    p.add_argument("--fast", action="store_true", default=None,
-                     help=f"fast mode: shorter recordings and fewer steps (see below). Default: ${FAST_ENV}, else off")
+    p.add_argument("--fast", action=argparse.BooleanOptionalAction, default=None,
+                     help=f"fast mode: shorter recordings and fewer steps (see below); --no-fast: full mode even "
+                          f"when ${FAST_ENV} is set. Default: ${FAST_ENV}, else off")
     p.add_argument("--device", metavar="DEV", default=None,
                      help="torch device for training, e.g. cpu, cuda, cuda:1. Default: cpu")
     p.add_argument("--threads", metavar="N", type=_positive_int, default=None,
@@ -237,14 +276,21 @@ def main(argv: Sequence[str] | None = None) -> int:
         return 2
     args.argv = list(sys.argv[1:] if argv is None else argv)
     from .data.recording import DataError
-    from .danae.checkpoints import CheckpointError
-    if args.command == "leaderboard":  # only the command asked for is imported
-        from .commands.leaderboard import run
+
+    errors: tuple[type[Exception], ...] = (UsageError, DataError, OSError)
+    if args.command == "data":  # only the command asked for is imported (data: no torch)
+        from .commands.data import run
     else:
-        from .commands.reproduce import run
+        from .danae.checkpoints import CheckpointError
+
+        errors += (CheckpointError,)
+        if args.command == "leaderboard":
+            from .commands.leaderboard import run
+        else:
+            from .commands.reproduce import run
     try:
         return run(args)
-    except (UsageError, DataError, CheckpointError, OSError) as err:
+    except errors as err:
         print(f"{PROG} {args.command}: error: {one_line(err)}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:

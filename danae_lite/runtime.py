@@ -81,6 +81,12 @@ def fast_mode(value: bool | None = None) -> bool:
     raise ValueError(f"{FAST_ENV}={raw!r}: expected one of 1/0, true/false, yes/no, on/off")
 
 
+def data_env() -> str | None:
+    """The ``DANAE_DATA`` variable as set (None when unset or empty); unlike :func:`data_dir` it
+    need not name an existing folder (``data fetch`` creates it)."""
+    return os.environ.get(DATA_ENV, "").strip() or None
+
+
 def data_dir(path: str | os.PathLike[str] | None = None) -> Path | None:
     """Resolve the real-data directory.
 

@@ -190,7 +190,7 @@ def load_trial(path: str | Path, *, index: TrialIndex | None = None) -> Recordin
         the key and, where it applies, the row (0-based) and column.
     """
     path = Path(path)
-    data = _read_mat(path)
+    data = read_mat(path)
     gyr = _array(path, data, "imu_gyr", 3, None)
     n = gyr.shape[0]
     acc = _array(path, data, "imu_acc", 3, n)
@@ -229,7 +229,7 @@ def load_trial(path: str | Path, *, index: TrialIndex | None = None) -> Recordin
     )
 
 
-def _read_mat(path: Path) -> dict[str, Any]:
+def read_mat(path: Path) -> dict[str, Any]:
     """The variables of a trial file; DataError when it is missing, unreadable or lacks a key."""
     from scipy.io import loadmat
 

@@ -14,7 +14,6 @@ from collections.abc import Sequence
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
 from numpy.typing import NDArray
 
 from .recording import DataError
@@ -90,6 +89,8 @@ def parse_numeric(path: Path, raw: bytes, ncols: int, *, skip: int = 0, usecols:
         that is empty, non-numeric, NaN or infinite. The message names the file, the 1-based
         line number and the 1-based column.
     """
+    import pandas as pd  # here, not at the top: the command line's --help loads no pandas
+
     cols = list(range(ncols)) if usecols is None else list(usecols)
     starts, ends = line_spans(raw)
     starts, ends = starts[skip:], ends[skip:]

@@ -50,8 +50,6 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import numpy as np
-import pandas as pd
-from scipy.spatial.transform import Rotation
 
 from .parsing import line_spans, parse_numeric, read_bytes
 from ..angles import G
@@ -119,6 +117,8 @@ def _mag_unit(path: Path, mag: np.ndarray) -> str:
 
 
 def _acc_sign(path: Path, acc: np.ndarray, quat: np.ndarray) -> tuple[int, float]:
+    from scipy.spatial.transform import Rotation  # here: the command line's --help loads no SciPy
+
     up = Rotation.from_quat(quat).inv().apply([0.0, 0.0, 1.0])
     norm = np.linalg.norm(acc, axis=1)
     cos = np.sum(acc * up, axis=1)[norm > 0] / norm[norm > 0]
@@ -131,6 +131,8 @@ def _acc_sign(path: Path, acc: np.ndarray, quat: np.ndarray) -> tuple[int, float
 
 def _integer_stamps(raw: bytes, col: int, n: int) -> np.ndarray | None:
     """The time column as int64 when every value is an integer (ns stamps exceed float64's 2**53)."""
+    import pandas as pd  # here, not at the top: the command line's --help loads no pandas
+
     try:
         frame = pd.read_csv(io.BytesIO(raw), usecols=[col], dtype=np.int64, engine="c")
     except (ValueError, OverflowError, pd.errors.ParserError):
