@@ -66,19 +66,21 @@ def fetch_broad(data_dir: Path, *, base_url: str = BROAD_URL,
     files = broad_files(reference)
     staging = data_dir / "broad" / STAGING
     written = []
-    for ref in files:
-        target = data_dir / ref.path
-        if target.is_file() and target.stat().st_size == ref.bytes and sha256(target) == ref.sha256:
-            report(f"  kept        {ref.path} (the book's copy)")
-            continue
-        url = base_url.rstrip("/") + "/" + ref.path.split("/", 1)[1]
-        staging.mkdir(parents=True, exist_ok=True)
-        staged = _download(url, ref, staging)
-        target.parent.mkdir(parents=True, exist_ok=True)
-        os.replace(staged, target)  # the same file system: whole or not at all
-        written.append(target)
-        report(f"  downloaded  {ref.path} ({ref.bytes / 1e6:.1f} MB, SHA-256 verified)")
-    shutil.rmtree(staging, ignore_errors=True)
+    try:
+        for ref in files:
+            target = data_dir / ref.path
+            if target.is_file() and target.stat().st_size == ref.bytes and sha256(target) == ref.sha256:
+                report(f"  kept        {ref.path} (the book's copy)")
+                continue
+            url = base_url.rstrip("/") + "/" + ref.path.split("/", 1)[1]
+            staging.mkdir(parents=True, exist_ok=True)
+            staged = _download(url, ref, staging)
+            target.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(staged, target)  # the same file system: whole or not at all
+            written.append(target)
+            report(f"  downloaded  {ref.path} ({ref.bytes / 1e6:.1f} MB, SHA-256 verified)")
+    finally:  # what a failed download left there is partial; every verified file is in place
+        shutil.rmtree(staging, ignore_errors=True)
     return written
 
 
