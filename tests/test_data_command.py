@@ -80,6 +80,11 @@ def test_check_and_where_from_the_command_line(tmp_oxiod, monkeypatch, capsys):
     args = ["--data-dir", str(tmp_oxiod.data_dir)]
     assert main(["data", "check", *args, "--experiment", "oxiod"]) == 0
     assert "8 of 8 files are the book's copies" in capsys.readouterr().out
+    assert main(["data", "check", *args, "--experiment", "ucs"]) == 0
+    assert "ucs (optional): absent: none of its files in" in capsys.readouterr().out
+    write_ucs(tmp_oxiod.data_dir / "ucs" / "full_dataset" / "imu_adis.txt")
+    assert main(["data", "check", *args, "--experiment", "ucs"]) == 0
+    assert "ucs (optional): 1 of 1 files pass the loader's format rules (no reference copy)" in capsys.readouterr().out
     (tmp_oxiod.syn / "imu2.csv").unlink()
     assert main(["data", "check", *args]) == 1
     out = capsys.readouterr().out

@@ -65,11 +65,12 @@ def check(args: argparse.Namespace) -> int:
         need = "required" if ds.required else "optional"
         if rep.absent:
             verdict = "MISSING" if ds.required else "absent"
-            print(f"{ds.name} ({need}): {verdict}: {root / ds.folder} not found; {ds.when_absent}; "
+            print(f"{ds.name} ({need}): {verdict}: none of its files in {root / ds.folder}; {ds.when_absent}; "
                   f"get it from {ds.source}")
             continue
         ok = sum(f.status == "ok" for f in rep.files)
-        print(f"{ds.name} ({need}): {ok} of {len(rep.files)} files are the book's copies")
+        kind = "are the book's copies" if ds.reference_copy else "pass the loader's format rules (no reference copy)"
+        print(f"{ds.name} ({need}): {ok} of {len(rep.files)} files {kind}")
         for f in rep.files:
             text = f.detail.removeprefix(f"{f.path}: ").removeprefix(f"{f.path} ")  # the path is on the line
             detail = f": {text}" if f.detail and f.status != "ok" else ""
