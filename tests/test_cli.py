@@ -13,7 +13,7 @@ import pytest
 
 from conftest import synthetic_oxiod, write_rows, write_ucs
 from danae_lite import cli
-from danae_lite.paper.reproduction import CSV_COLUMNS
+from danae_lite.commands.reproduce import CSV_COLUMNS
 from danae_lite.data import experiments
 from danae_lite.evaluate import metrics
 from danae_lite.data import oxiod_motions

@@ -15,6 +15,7 @@ from danae_lite.data.experiments import Experiment
 from danae_lite.research.leaderboard import run_leaderboard
 from danae_lite.data.recording import DataError
 from danae_lite.danae.train_types import TrainConfig
+from danae_lite.commands.reproduce import metrics_json, metrics_table, write_outputs
 
 
 @pytest.fixture(scope="module")
@@ -58,7 +59,7 @@ def test_reproduce_metrics_match_an_independent_computation(recs, tmp_path):
     rep = pipeline.reproduce(exp, angles=("roll", "yaw"), seeds=(0, 1), config=cfg, progress=False,
                              cache=tmp_path / "cache", log=lines.append)
     assert len(lines) == 1 + 2 * 2 and set(rep.study.results) == {(a, s) for a in ("roll", "yaw") for s in (0, 1)}
-    out = rep.to_json()
+    out = metrics_json(rep)
     assert list(out) == ["experiment", "data", "train", "test", "seeds", "kf", "danae", "paper", "seconds"]
     assert out["test"] == [recs[0].name, "sim-extra"] and out["seeds"] == [0, 1]
     for angle, k in (("roll", 0), ("yaw", 2)):
@@ -78,7 +79,7 @@ def test_reproduce_metrics_match_an_independent_computation(recs, tmp_path):
     s = out["seconds"]
     assert list(s) == ["kf", "train", "total"] and s["total"] >= s["kf"] + s["train"]
 
-    frame = rep.metrics_frame()
+    frame = metrics_table(rep)
     assert list(zip(frame.method, frame.angle)) == [(m, a) for m in ("kf", "danae") for a in ("roll", "yaw")]
     assert frame.set_index(["method", "angle"]).loc[("danae", "yaw"), "rmse"] == out["danae"]["yaw"]["rmse"]
 
@@ -96,7 +97,7 @@ def test_reproduce_metrics_match_an_independent_computation(recs, tmp_path):
     assert list(series.columns) == ["time_s", "ground_truth", "kf", "danae"] and len(series) == len(recs[0])
     np.testing.assert_array_equal(series.danae, rep.study.predictions[("roll", 1, "overlap")][recs[0].name])
 
-    written = rep.write(tmp_path / "out")
+    written = write_outputs(rep, tmp_path / "out")
     assert [p.name for p in written] == ["metrics.json", "metrics.csv", "seed_table.csv",
                                         "figure1_roll.csv", "figure1_roll.png"]
     assert json.loads(written[0].read_text()) == out  # floats survive JSON exactly

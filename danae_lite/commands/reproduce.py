@@ -5,7 +5,7 @@ The command parses arguments, resolves the data (:mod:`~danae_lite.data.experime
 :func:`danae_lite.paper.pipeline.reproduce`, the same function the book's chapters call: the
 paper's KF on every recording -> one DANAE per angle and seed -> the paper's metrics
 (:mod:`~danae_lite.evaluate.metrics`) -> the paper's figure (:mod:`~danae_lite.paper.figures`). It writes
-into ``--out`` (:meth:`danae_lite.paper.reproduction.Reproduction.write`, plus ``run.json``):
+into ``--out`` (:func:`write_outputs`, plus ``run.json``):
 
 ``metrics.json``
     ``{"experiment", "data", "train", "test", "seeds", "kf", "danae", "paper", "seconds"}``;
@@ -40,13 +40,25 @@ import json
 import shlex
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
+import matplotlib.pyplot as plt
+import numpy as np
+import pandas as pd
+
+from .. import plots
+from ..evaluate.metrics import METRICS, reduction_pct
+from ..evaluate.scoring import plain
+from ..paper.figures import PAPER_FIGURES
 from .data_flags import UsageError
 from .prepare import EXPERIMENT_ANGLES, LEADERBOARD_ONLY, PROG, prepare
 
 if TYPE_CHECKING:
     from ..paper.reproduction import Reproduction
+
+CSV_COLUMNS: tuple[str, ...] = ("method", "angle", "mean_dev", "max_dev", "rmse", "rmse_std",
+                                "paper_mean_dev", "paper_max_dev", "paper_rmse")
+"""Columns of ``metrics.csv`` (:func:`metrics_table`); metrics in rad."""
 
 
 def run(args: argparse.Namespace) -> int:
@@ -67,7 +79,7 @@ def run(args: argparse.Namespace) -> int:
           f"max steps {config.max_steps if config.max_steps is not None else 'none'} | device {device}", flush=True)
     rep = pipeline.reproduce(exp, angles=angles, seeds=seeds, config=config, progress=sys.stdout.isatty(),
                              cache=settings.cache, jobs=settings.jobs, log=_log)
-    written = rep.write(out_dir)
+    written = write_outputs(rep, out_dir)
     if args.save_models:
         written += _save_models(rep, out_dir / "models")
     written.append(_write_run_json(args, rep, fast, device, out_dir))
@@ -95,8 +107,6 @@ def _write_run_json(args: argparse.Namespace, rep: Reproduction, fast: bool, dev
     """``run.json``: the command, data note, mode, settings and the figure shown."""
     import torch
 
-    from ..paper.figures import PAPER_FIGURES
-
     exp = rep.experiment
     spec = PAPER_FIGURES[exp.name]
     series = rep.figure_series(spec)
@@ -115,12 +125,8 @@ def _write_run_json(args: argparse.Namespace, rep: Reproduction, fast: bool, dev
 
 def _print_summary(rep: Reproduction) -> None:
     """Print the metric table [rad] and the RMSE reductions [%] next to the paper's."""
-    import pandas as pd
-
-    from ..evaluate.metrics import reduction_pct
-
-    result = rep.to_json()
-    shown = rep.metrics_frame().set_index(["method", "angle"])
+    result = metrics_json(rep)
+    shown = metrics_table(rep).set_index(["method", "angle"])
     with pd.option_context("display.float_format", "{:.4f}".format, "display.width", 140):
         print(f"\nmetrics [rad] on the test recordings ({result['data']} data; DANAE: mean over seeds "
               f"{' '.join(map(str, result['seeds']))}):")
@@ -135,3 +141,51 @@ def _print_summary(rep: Reproduction) -> None:
     print("RMSE reduction by DANAE: " + "; ".join(red))
     s = result["seconds"]
     print(f"time: KF {s['kf']:.1f} s, DANAE {s['train']:.1f} s, total {s['total']:.1f} s")
+
+
+def metrics_json(rep: Reproduction) -> dict[str, Any]:
+    """The content of ``metrics.json``: ``{"experiment", "data", "train", "test", "seeds",
+    "kf", "danae", "paper", "seconds"}`` (see the module's docstring)."""
+    return {
+        "experiment": rep.experiment.name,
+        "data": rep.data,
+        "train": rep.train,
+        "test": rep.test,
+        "seeds": list(rep.seeds),
+        "kf": plain(rep.kf),
+        "danae": plain(rep.danae),
+        "paper": plain(rep.paper),
+        "seconds": {k: float(rep.seconds[k]) for k in ("kf", "train", "total")},
+    }
+
+
+def metrics_table(rep: Reproduction) -> pd.DataFrame:
+    """The table of ``metrics.csv``: one row per method ("kf", "danae") and angle, columns
+    :data:`CSV_COLUMNS` [rad]; ``rmse_std`` is NaN for the KF, paper values NaN where absent."""
+    rows = []
+    for method, block in (("kf", rep.kf), ("danae", rep.danae)):
+        for angle, vals in block.items():
+            ref = (rep.paper or {}).get(method, {}).get(angle, {})
+            rows.append({"method": method, "angle": angle, **{m: vals[m] for m in METRICS},
+                         "rmse_std": vals.get("rmse_std", np.nan),
+                         **{f"paper_{m}": ref.get(m, np.nan) for m in METRICS}})
+    return pd.DataFrame(rows, columns=list(CSV_COLUMNS))
+
+
+def write_outputs(rep: Reproduction, out_dir: Path) -> list[Path]:
+    """Write ``metrics.json``, ``metrics.csv``, ``seed_table.csv`` and the paper's figure
+    (``figureN_<angle>.csv`` with its samples, ``figureN_<angle>.png``) into ``out_dir``
+    (created if needed); return the paths written, ``metrics.json`` first."""
+    out_dir.mkdir(parents=True, exist_ok=True)
+    spec = PAPER_FIGURES[rep.experiment.name]
+    paths = [out_dir / "metrics.json", out_dir / "metrics.csv", out_dir / "seed_table.csv",
+             out_dir / f"{spec.filename}.csv", out_dir / f"{spec.filename}.png"]
+    paths[0].write_text(json.dumps(metrics_json(rep), indent=2) + "\n")
+    metrics_table(rep).to_csv(paths[1], index=False)
+    rep.study.table.to_csv(paths[2], index=False)
+    rep.figure_series(spec).to_csv(paths[3], index=False)
+    plots.use_style()
+    fig = rep.plot_figure(spec)
+    fig.savefig(paths[4])
+    plt.close(fig)
+    return paths

@@ -1,15 +1,12 @@
 """The results of the paper's experiment (:func:`danae_lite.paper.pipeline.reproduce`): the
 per-seed study, the scores by the leaderboard's rule, and the :class:`Reproduction` with its
-tables (Table 1 or 2 beside the paper's values), files and figure (Figure 1 or 2).
+tables (Table 1 or 2 beside the paper's values) and figure (Figure 1 or 2). The files the
+command line writes from it are :mod:`danae_lite.commands.reproduce`'s.
 """
 from __future__ import annotations
 
-import json
-import os
 from collections.abc import Iterable, Sequence
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any
 
 import matplotlib.pyplot as plt
 import numpy as np
@@ -17,20 +14,14 @@ import pandas as pd
 from numpy.typing import NDArray
 
 from . import figures
-from .. import plots
 from ..angles import ANGLES, wrap
 from ..data.experiments import Experiment
 from ..data.groundtruth import clean_mask
 from ..danae.train_types import TrainConfig, TrainResult
 from ..evaluate import metrics
-from ..evaluate.scoring import SUBSETS, plain, score_rows
+from ..evaluate.scoring import SUBSETS, score_rows
 from ..kalman.model import KFConfig
 from .figures import PAPER_FIGURES, PaperFigure
-
-CSV_COLUMNS: tuple[str, ...] = ("method", "angle", "mean_dev", "max_dev", "rmse", "rmse_std",
-                                "paper_mean_dev", "paper_max_dev", "paper_rmse")
-"""Columns of :meth:`Reproduction.metrics_frame` (``metrics.csv``); metrics in rad."""
-
 
 MetricDict = dict[str, float]
 """``{"mean_dev", "max_dev", "rmse"}`` [rad] (DANAE: also ``"rmse_std"``)."""
@@ -208,33 +199,6 @@ class Reproduction:
         """Names of the test recordings."""
         return [r.name for r in self.experiment.test]
 
-    def to_json(self) -> dict[str, Any]:
-        """The content of ``metrics.json``: ``{"experiment", "data", "train", "test", "seeds",
-        "kf", "danae", "paper", "seconds"}`` (see :mod:`danae_lite.commands.reproduce`)."""
-        return {
-            "experiment": self.experiment.name,
-            "data": self.data,
-            "train": self.train,
-            "test": self.test,
-            "seeds": list(self.seeds),
-            "kf": plain(self.kf),
-            "danae": plain(self.danae),
-            "paper": plain(self.paper),
-            "seconds": {k: float(self.seconds[k]) for k in ("kf", "train", "total")},
-        }
-
-    def metrics_frame(self) -> pd.DataFrame:
-        """The table of ``metrics.csv``: one row per method ("kf", "danae") and angle, columns
-        :data:`CSV_COLUMNS` [rad]; ``rmse_std`` is NaN for the KF, paper values NaN where absent."""
-        rows = []
-        for method, block in (("kf", self.kf), ("danae", self.danae)):
-            for angle, vals in block.items():
-                ref = (self.paper or {}).get(method, {}).get(angle, {})
-                rows.append({"method": method, "angle": angle, **{m: vals[m] for m in metrics.METRICS},
-                             "rmse_std": vals.get("rmse_std", np.nan),
-                             **{f"paper_{m}": ref.get(m, np.nan) for m in metrics.METRICS}})
-        return pd.DataFrame(rows, columns=list(CSV_COLUMNS))
-
     def comparison(self, samples: str = "all") -> pd.DataFrame:
         """Our numbers in the layout of the paper's Table 1/2, next to the paper's [rad], on
         ``"all"`` test samples (as the paper) or on the ``"clean"`` ones (:meth:`metrics_on`).
@@ -310,22 +274,3 @@ class Reproduction:
         title = (f"Figure {spec.number} recreated: {spec.angle}, KF (above) and DANAE (below, seed {seed}) vs "
                  f"ground truth\n{self.test[0]} ({self.data}), test samples {series.index[0]}-{series.index[-1]}")
         return figures.plot_kf_danae(series, spec.angle, title=title)
-
-    def write(self, out_dir: str | os.PathLike[str]) -> list[Path]:
-        """Write ``metrics.json``, ``metrics.csv``, ``seed_table.csv`` and the paper's figure
-        (``figureN_<angle>.csv`` with its samples, ``figureN_<angle>.png``) into ``out_dir``
-        (created if needed); return the paths written, ``metrics.json`` first."""
-        out = Path(out_dir)
-        out.mkdir(parents=True, exist_ok=True)
-        spec = self._figure_spec(None)
-        paths = [out / "metrics.json", out / "metrics.csv", out / "seed_table.csv",
-                 out / f"{spec.filename}.csv", out / f"{spec.filename}.png"]
-        paths[0].write_text(json.dumps(self.to_json(), indent=2) + "\n")
-        self.metrics_frame().to_csv(paths[1], index=False)
-        self.study.table.to_csv(paths[2], index=False)
-        self.figure_series(spec).to_csv(paths[3], index=False)
-        plots.use_style()
-        fig = self.plot_figure(spec)
-        fig.savefig(paths[4])
-        plt.close(fig)
-        return paths
