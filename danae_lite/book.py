@@ -35,7 +35,6 @@ from typing import Any
 
 from .danae.seeding import seed_everything
 from .runtime import DEFAULT_SEED, RunSettings
-from .research import memo
 
 # values glued by the running chapter, by name (one chapter per kernel; setup() empties it)
 _RECORDED: dict[str, Any] = {}
@@ -53,7 +52,6 @@ def setup(seed: int = DEFAULT_SEED, *, verbose: bool = True) -> RunSettings:
     seed_everything(seed)  # torch too once loaded: chapters 1-2 run without it
     _RECORDED.clear()
     cfg = RunSettings.from_env(seed=seed)
-    memo.use_store(cfg.run_store)
     if cfg.scheduler is not None:  # imported only then: chapters 1-2 load no torch
         from .danae.networks import use_scheduler
 

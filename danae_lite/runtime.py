@@ -14,10 +14,10 @@ takes its settings as arguments and never reads the environment.
     from :func:`platformdirs.user_cache_dir`, as pip and torch keep theirs), so it survives a
     fresh clone. ``off`` (or ``none``): nothing is cached. Full-mode and fast-mode networks
     go to its sub-folders ``full/`` and ``fast/``, capped separately, so that fast runs
-    never push out full-mode networks. The book's chapters also keep there, in ``runs/full/``
-    and ``runs/fast/``, what library filters and trained networks computed on recordings
-    (:mod:`danae_lite.research.memo`, keyed by the code that computes them): a re-execution
-    finds what an earlier one computed with the same code.
+    never push out full-mode networks. The research chapters (5-8) also keep there, in
+    ``runs/full/`` and ``runs/fast/``, what library filters and trained networks computed on
+    recordings (:func:`danae_lite.research.memo.keep_runs`, keyed by the code that computes
+    them): a re-execution finds what an earlier one computed with the same code.
 ``DANAE_CACHE_GB``
     Size cap of each of those sub-folders [GB] (default :data:`DEFAULT_CACHE_GB`): storing a
     network (or run) past it removes the least recently used ones first.
@@ -48,7 +48,6 @@ from .data.experiments import existing_dir
 if TYPE_CHECKING:  # imported where used: the settings of the KF chapters load no torch
     from .danae.networks import NetworkCache
     from .danae.train_types import TrainConfig
-    from .research.memo import RunStore
 
 
 FAST_ENV = "DANAE_FAST"
@@ -259,17 +258,6 @@ class RunSettings:
                    seeds=tuple(int(s) for s in (seeds if seeds is not None else default_seeds)),
                    cache_root=cache_dir(cache), cache_gb=cache_gb(), jobs=jobs(n_jobs),
                    device=device or "cpu", scheduler=scheduler(scheduler_address))
-
-    @property
-    def run_store(self) -> "RunStore | None":
-        """This mode's store of filter and network runs (``<cache_root>/runs/full`` or
-        ``runs/fast``, capped at ``cache_gb``): what :func:`danae_lite.research.memo.use_store`
-        takes; None for no cache."""
-        from .research.memo import RunStore
-
-        if self.cache_root is None:
-            return None
-        return RunStore(self.cache_root / "runs" / ("fast" if self.fast else "full"), int(self.cache_gb * 1e9))
 
     def pick(self, full: Any, fast: Any) -> Any:
         """``fast`` in fast mode, else ``full`` (e.g. ``cfg.pick(full=20, fast=2)`` epochs)."""

@@ -86,6 +86,20 @@ def test_a_run_stored_on_disk_is_found_by_a_fresh_memo_of_the_same_code(store):
     assert RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.ahrs.filters").get(("run", 1)) is None
 
 
+def test_keep_runs_puts_the_store_in_the_modes_folder_of_the_cache(tmp_path):
+    from danae_lite.runtime import RunSettings
+
+    try:
+        memo.keep_runs(RunSettings(fast=True, cache_root=tmp_path, cache_gb=0.5))
+        assert memo._store == RunStore(tmp_path / "runs" / "fast", 500_000_000)
+        memo.keep_runs(RunSettings(fast=False, cache_root=tmp_path))
+        assert _store_in_use() == tmp_path / "runs" / "full"
+        memo.keep_runs(RunSettings(cache_root=None))  # the cache is off: runs stay in memory
+        assert memo._store is None
+    finally:
+        memo.use_store(None)
+
+
 def test_a_damaged_stored_run_counts_as_missing_and_is_removed(store):
     m = RunMemo(max_bytes=1 << 20, code_of="danae_lite.research.ahrs.filters")
     m.put(("run", 1), np.ones(100))

@@ -284,3 +284,18 @@ def test_the_device_is_part_of_the_key(recs, monkeypatch):
     assert networks.cache_key(gpu) != on_cpu and len(on_cpu) == 32
     threads = _job([recs[0].euler[:, 0]], [recs[1].euler[:, 0]], TrainConfig(max_steps=5, num_threads=3))
     assert networks.cache_key(threads) == on_cpu  # the thread count changes only rounding
+
+
+def test_loky_replacing_a_worker_leaves_no_warning_for_a_chapter_to_store():
+    """loky warns from its manager thread when it replaces a worker whose memory grew (the
+    workers keep their runs by design); after a pool has run, that warning is not shown."""
+    import warnings
+
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        assert list(networks.in_processes(abs, [(-1,), (-2,)], processes=1, threads=1)) == [1, 2]
+        loky = {"__name__": "joblib.externals.loky.process_executor"}
+        exec("import warnings\nwarnings.warn('A worker stopped while some jobs were given to the executor.', "
+             "UserWarning)", loky)
+        exec("import warnings\nwarnings.warn('another warning', UserWarning)", loky)
+    assert [str(w.message) for w in caught] == ["another warning"]

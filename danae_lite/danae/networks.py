@@ -261,6 +261,11 @@ def in_processes(fn: Callable[..., R], calls: Sequence[tuple[Any, ...]], *, proc
     done. If a call raises, the calls not yet started are cancelled and the error is raised.
     """
     if _scheduler is None or local:
+        # loky replaces a worker whose memory grew by more than its leak threshold (ours keep
+        # what they computed, by design: research.memo) and warns from its manager thread, at
+        # any later time; the results do not change, and a chapter would store the warning
+        warnings.filterwarnings("ignore", message="A worker stopped while some jobs were given",
+                                category=UserWarning, module="joblib.externals.loky.process_executor")
         config = joblib.parallel_config(backend="loky", inner_max_num_threads=threads)
         n_jobs = processes
     else:

@@ -9,7 +9,8 @@ the parameters and the input arrays, so each distinct run is computed once:
 what ran, its parameters and a :func:`digest` of the input arrays.
 
 A memo holds its runs in memory; when the entry point hands it a :class:`RunStore`
-(:func:`use_store`: the book's ``setup()`` does, in ``<cache>/runs/full`` or ``runs/fast``), it
+(:func:`use_store`; the research chapters call :func:`keep_runs` after ``setup()``, which puts it
+in ``<cache>/runs/full`` or ``runs/fast``), it
 also keeps each run on disk, in joblib's store, for later processes and later re-executions. A
 stored run's name hashes its key and the memo's :func:`code_fingerprint`: the code of the module that
 computes it and of every module of the package that module imports, the versions of the
@@ -33,7 +34,7 @@ from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, Protocol, TypeVar
 
 import joblib
 import numpy as np
@@ -119,6 +120,26 @@ def use_store(store: RunStore | None) -> None:
     memory only). Set by an entry point; :func:`carrying_store` passes it to worker processes."""
     global _store
     _store = store
+
+
+class CacheSettings(Protocol):
+    """What :func:`keep_runs` reads of the run's settings (:class:`danae_lite.runtime.RunSettings`)."""
+
+    cache_root: Path | None
+    fast: bool
+    cache_gb: float
+
+
+def keep_runs(settings: CacheSettings) -> None:
+    """:func:`use_store` with this mode's store of the settings' cache: ``<cache_root>/runs/full``
+    (or ``runs/fast``), capped at ``cache_gb`` [GB]; no store (runs kept in memory only) when
+    the cache is off. What a chapter that runs library filters or networks on recordings calls
+    after ``setup()``."""
+    if settings.cache_root is None:
+        use_store(None)
+        return
+    folder = settings.cache_root / "runs" / ("fast" if settings.fast else "full")
+    use_store(RunStore(folder, int(settings.cache_gb * 1e9)))
 
 
 def carrying_store(fn: Callable[..., R]) -> Callable[..., R]:
