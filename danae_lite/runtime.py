@@ -95,8 +95,8 @@ def data_dir(path: str | os.PathLike[str] | None = None) -> Path | None:
     """
     if path is not None:
         return existing_dir(path)
-    env = os.environ.get(DATA_ENV, "").strip()
-    if not env:
+    env = data_env()
+    if env is None:
         return None
     p = Path(env).expanduser().resolve()
     if not p.is_dir():
