@@ -6,10 +6,11 @@ this map (``tests/test_architecture.py`` keeps it so, with no import circles and
 listed here). Book maintenance (re-executing the chapters, the pages' generated blocks) is not
 part of the package: ``tools/``.
 
-* :mod:`~danae_lite.angles`  Euler/quaternion conventions, frames (ENU/NWU), gravity, angle wrapping
+* :mod:`~danae_lite.angles`  Euler/quaternion conventions, gravity, angle wrapping
 
 **Recordings** (``data/``)
 
+* :mod:`~danae_lite.data.frames`  the quaternion product; body -> ENU and body -> NWU quaternions
 * :mod:`~danae_lite.data.recording`  the one :class:`~danae_lite.data.recording.Recording` type and :class:`~danae_lite.data.recording.DataError`
 * :mod:`~danae_lite.data.parsing`  strict numeric parsing shared by the loaders
 * :mod:`~danae_lite.data.oxiod`, :mod:`~danae_lite.data.ucs`  loaders of the paper's two datasets

@@ -38,8 +38,9 @@ from .runtime import DEFAULT_SEED, RunSettings
 
 # values glued by the running chapter, by name (one chapter per kernel; setup() empties it)
 _RECORDED: dict[str, Any] = {}
-# the parts of Markdown that prose() leaves as they are: fenced code, inline code, maths
-_VERBATIM = re.compile(r"^```.*?^```[^\n]*$|`[^`\n]*`|\$\$.*?\$\$|\$[^$\n]+\$", re.S | re.M)
+# the parts of Markdown that prose() leaves as they are: fenced code, inline code, maths (one group,
+# so that _VERBATIM.split() returns them at the odd positions, between the text to fill)
+_VERBATIM = re.compile(r"(^```.*?^```[^\n]*$|`[^`\n]*`|\$\$.*?\$\$|\$[^$\n]+\$)", re.S | re.M)
 
 
 def setup(seed: int = DEFAULT_SEED, *, verbose: bool = True) -> RunSettings:
@@ -82,26 +83,20 @@ def fill(template: str, values: dict[str, Any]) -> str:
 
     Raises KeyError naming the field when ``values`` has no such name, ValueError for a brace
     that is not a field."""
-    formatter = string.Formatter()
-    out, last = [], 0
-    for m in _VERBATIM.finditer(template):
-        out.append(_fill_plain(formatter, template[last:m.start()], values))
-        out.append(m.group(0))
-        last = m.end()
-    out.append(_fill_plain(formatter, template[last:], values))
-    return "".join(out)
+    parts = _VERBATIM.split(template)
+    parts[::2] = [_fill_plain(text, values) for text in parts[::2]]
+    return "".join(parts)
 
 
 def fields(template: str) -> list[str]:
     """The names of the fields of ``template`` outside code and maths, in order (see :func:`fill`)."""
-    formatter = string.Formatter()
-    return [name for part in _VERBATIM.split(template) for _, name, _, _ in formatter.parse(part)
+    return [name for text in _VERBATIM.split(template)[::2] for _, name, _, _ in string.Formatter().parse(text)
             if name]
 
 
-def _fill_plain(formatter: string.Formatter, text: str, values: dict[str, Any]) -> str:
+def _fill_plain(text: str, values: dict[str, Any]) -> str:
     try:
-        return formatter.vformat(text, (), values)
+        return text.format_map(values)
     except KeyError as err:
         raise KeyError(f"prose: no value glued under the name {err.args[0]!r} (glue it in an "
                        f"earlier cell); in {text.strip()[:80]!r}") from None

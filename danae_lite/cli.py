@@ -19,15 +19,13 @@ from typing import Any
 
 from .runtime import (CACHE_ENV, CACHE_GB_ENV, DATA_ENV, DEFAULT_CACHE_GB, FAST_ENV,
                       FAST_EPOCHS, FAST_MAX_STEPS, FAST_SEEDS, FULL_SEEDS, JOBS_ENV, SCHEDULER_ENV)
-from .data.experiments import (FAST_DURATION, FAST_SAMPLES, OXIOD_TEST, OXIOD_TRAIN,
-                               PAPER_SPLIT_FOLDER, PAPER_SPLIT_TEST, PAPER_SPLIT_TRAIN,
-                               TRAIN_FRACTION)
+from .data.experiments import FAST_DURATION, FAST_SAMPLES, OXIOD_TEST, OXIOD_TRAIN, TRAIN_FRACTION
 from .data import broad as broad_data
 from .data.oxiod_motions import FAST_MOTION_RECORDINGS
 from .data.fetch import BROAD_URL
 from .data.inventory import EXPERIMENTS
 from ._version import __version__
-from .commands.data_flags import UsageError
+from .commands.data_flags import PAPER_SPLIT_FOLDER, PAPER_SPLIT_TEST, PAPER_SPLIT_TRAIN, UsageError
 from .commands.method_names import METHOD_NAMES, is_method_name
 from .commands.prepare import EXPERIMENT_ANGLES, PAPER_EPOCHS, PROG, one_line
 

@@ -63,6 +63,9 @@ ANGLE_COLORS: dict[str, str] = {"roll": "#1b9e77", "pitch": "#d95f02", "yaw": "#
 """Colour of each angle, where a figure separates angles rather than methods (a palette of its
 own, so that an angle is never mistaken for a method)."""
 
+LINE_STYLES: dict[str, dict[str, float]] = {"truth": {"lw": 1.4}, "measurement": {"lw": 0.6, "alpha": 0.6}}
+"""Line width (and transparency) of the curves drawn other than at the default width of 1."""
+
 LABELS: dict[str, str] = {
     "truth": "ground truth",
     "kf": "KF",
@@ -111,15 +114,11 @@ def plot_series(
     ax = ax or plt.gca()
     t = np.asarray(t, dtype=float)
     for name, y in series.items():
-        kw: dict[str, object] = {"lw": 1.0}
+        kw: dict[str, object] = {"lw": 1.0, "label": LABELS.get(name, name)}
         if name in COLORS:
             kw["color"] = COLORS[name]
-        if name == "truth":
-            kw["lw"] = 1.4
-        if name == "measurement":
-            kw.update(lw=0.6, alpha=0.6)
+        kw.update(LINE_STYLES.get(name, {}))
         kw.update((styles or {}).get(name, {}))
-        kw.setdefault("label", LABELS.get(name, name))
         ax.plot(t, np.asarray(y, dtype=float), **kw)
     ax.set_xlabel("time [s]")
     if ylabel:

@@ -39,7 +39,6 @@ from __future__ import annotations
 
 import os
 from dataclasses import dataclass, field, replace
-from collections.abc import Mapping
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -63,6 +62,27 @@ DEFAULT_SEED = 0
 
 _TRUE = {"1", "true", "yes", "on"}
 _FALSE = {"", "0", "false", "no", "off"}
+_OFF = {"off", "none"}
+
+
+def _given(value: object, name: str, env: str, default: str = "") -> tuple[str, str]:
+    """A setting's text and where it came from: ``value`` if given (``name``), else the variable
+    ``env``, else ``default`` (``$env``); stripped."""
+    if value is not None:
+        return str(value).strip(), name
+    return os.environ.get(env, "").strip() or default, f"${env}"
+
+
+def _positive(value: float | None, name: str, env: str, default: str, kind: type, expected: str) -> Any:
+    """A positive finite number of type ``kind`` from :func:`_given`; ValueError naming its origin."""
+    raw, origin = _given(value, name, env, default)
+    try:
+        number = kind(raw)
+    except ValueError:
+        number = 0
+    if not 0 < number < float("inf"):
+        raise ValueError(f"{origin}={raw!r}: expected {expected}")
+    return number
 
 
 def fast_mode(value: bool | None = None) -> bool:
@@ -73,11 +93,9 @@ def fast_mode(value: bool | None = None) -> bool:
     if value is not None:
         return bool(value)
     raw = os.environ.get(FAST_ENV, "").strip().lower()
-    if raw in _TRUE:
-        return True
-    if raw in _FALSE:
-        return False
-    raise ValueError(f"{FAST_ENV}={raw!r}: expected one of 1/0, true/false, yes/no, on/off")
+    if raw not in _TRUE | _FALSE:
+        raise ValueError(f"{FAST_ENV}={raw!r}: expected one of 1/0, true/false, yes/no, on/off")
+    return raw in _TRUE
 
 
 def data_env() -> str | None:
@@ -104,98 +122,44 @@ def data_dir(path: str | os.PathLike[str] | None = None) -> Path | None:
     return p
 
 
-_OFF = {"off", "none"}
-
-
-def default_cache_root() -> Path:
-    """The user's cache folder for this package (``~/.cache/danae_lite`` on Linux, or
-    ``$XDG_CACHE_HOME/danae_lite``), the convention pip and torch follow."""
-    import platformdirs
-
-    return Path(platformdirs.user_cache_dir("danae_lite", appauthor=False))
-
-
 def cache_dir(path: str | os.PathLike[str] | None = None) -> Path | None:
-    """Root folder of the network cache: ``path`` if given, else ``DANAE_CACHE``, else
-    :func:`default_cache_root`; None when the value is ``off`` or ``none`` (no cache).
+    """Root folder of the network cache: ``path`` if given, else ``DANAE_CACHE``, else the user's
+    cache folder for this package (``~/.cache/danae_lite`` on Linux, or ``$XDG_CACHE_HOME/danae_lite``:
+    :func:`platformdirs.user_cache_dir`, the convention pip and torch follow); None when the
+    value is ``off`` or ``none`` (no cache).
 
     The folder is created when the first network is stored in it.
     """
-    raw = str(path).strip() if path is not None else os.environ.get(CACHE_ENV, "").strip()
+    import platformdirs
+
+    raw, _ = _given(path, "cache", CACHE_ENV)
     if raw.lower() in _OFF:
         return None
-    return Path(raw).expanduser().resolve() if raw else default_cache_root().resolve()
+    return Path(raw or platformdirs.user_cache_dir("danae_lite", appauthor=False)).expanduser().resolve()
 
 
 def cache_gb(value: float | None = None) -> float:
     """Size cap of each cache sub-folder [GB]: ``value`` if given, else ``DANAE_CACHE_GB``, else
     :data:`DEFAULT_CACHE_GB`. Raises ``ValueError`` for a value that is not a positive number."""
-    raw = str(value) if value is not None else os.environ.get(CACHE_GB_ENV, "").strip() or str(DEFAULT_CACHE_GB)
-    try:
-        gb = float(raw)
-    except ValueError:
-        gb = 0.0
-    if not gb > 0 or gb == float("inf"):
-        origin = "cache_gb" if value is not None else f"${CACHE_GB_ENV}"
-        raise ValueError(f"{origin}={raw!r}: expected a positive size in GB")
-    return gb
-
-
-def network_cache(root: Path | None, *, fast: bool, max_gb: float = DEFAULT_CACHE_GB) -> "NetworkCache | None":
-    """The cache of one mode: ``<root>/fast`` or ``<root>/full``, capped at ``max_gb`` GB; None
-    without a root."""
-    from .danae.networks import NetworkCache
-
-    if root is None:
-        return None
-    return NetworkCache(root / ("fast" if fast else "full"), int(max_gb * 1e9))
+    return _positive(value, "cache_gb", CACHE_GB_ENV, str(DEFAULT_CACHE_GB), float, "a positive size in GB")
 
 
 def jobs(value: int | None = None) -> int:
     """Worker processes: ``value`` if given, else ``DANAE_JOBS``, else 1. Raises ``ValueError``
     for a value that is not a positive integer."""
-    raw = str(value) if value is not None else os.environ.get(JOBS_ENV, "").strip() or "1"
-    try:
-        n = int(raw)
-    except ValueError:
-        n = 0
-    if n < 1:
-        origin = "jobs" if value is not None else f"${JOBS_ENV}"
-        raise ValueError(f"{origin}={raw!r}: expected a positive number of worker processes")
-    return n
+    return _positive(value, "jobs", JOBS_ENV, "1", int, "a positive number of worker processes")
 
 
 def scheduler(value: str | None = None) -> str | None:
     """The Dask scheduler's address: ``value`` if given, else ``DANAE_SCHEDULER``, else None.
     Raises ``ValueError`` for an address without a protocol and a port (``tcp://host:8786``)."""
-    raw = (value if value is not None else os.environ.get(SCHEDULER_ENV, "")).strip()
+    raw, origin = _given(value, "scheduler", SCHEDULER_ENV)
     if not raw:
         return None
     protocol, _, rest = raw.partition("://")
     if not protocol or not rest or not rest.rpartition(":")[2].isdigit():
-        origin = "scheduler" if value is not None else f"${SCHEDULER_ENV}"
         raise ValueError(f"{origin}={raw!r}: expected a Dask scheduler address such as tcp://host:8786")
     return raw
-
-
-def kernel_environment(*, data_dir: Path | None, cache: Path | None, fast: bool, n_jobs: int,
-                       max_gb: float = DEFAULT_CACHE_GB, base: Mapping[str, str] | None = None,
-                       scheduler_address: str | None = None) -> dict[str, str]:
-    """The environment of a child process (a chapter's kernel) that is to run with these settings.
-
-    ``base`` (default: this process's environment) without any ``DANAE_*`` variable, plus ``DANAE_FAST``,
-    ``DANAE_JOBS``, ``DANAE_CACHE`` (the cache root, or ``off`` for None), ``DANAE_CACHE_GB`` and,
-    when set, ``DANAE_DATA`` and ``DANAE_SCHEDULER``: what the child's :meth:`RunSettings.from_env`
-    reads back.
-    """
-    env = {k: v for k, v in (os.environ if base is None else base).items() if not k.startswith("DANAE_")}
-    env.update({FAST_ENV: "1" if fast else "0", JOBS_ENV: str(n_jobs), CACHE_ENV: str(cache) if cache else "off",
-                CACHE_GB_ENV: repr(float(max_gb))})
-    if data_dir is not None:
-        env[DATA_ENV] = str(data_dir)
-    if scheduler_address is not None:
-        env[SCHEDULER_ENV] = scheduler_address
-    return env
 
 
 FAST_MAX_STEPS = 50
@@ -241,7 +205,11 @@ class RunSettings:
     def cache(self) -> "NetworkCache | None":
         """This mode's network cache (``<cache_root>/full`` or ``/fast``, capped at ``cache_gb``),
         what the library calls take as ``cache=``; None for no cache."""
-        return network_cache(self.cache_root, fast=self.fast, max_gb=self.cache_gb)
+        from .danae.networks import NetworkCache
+
+        if self.cache_root is None:
+            return None
+        return NetworkCache(self.cache_root / ("fast" if self.fast else "full"), int(self.cache_gb * 1e9))
 
     @classmethod
     def from_env(cls, *, fast: bool | None = None, data: str | os.PathLike[str] | None = None,

@@ -13,8 +13,7 @@ import pytest
 from scipy.io import savemat
 from scipy.spatial.transform import Rotation, Slerp
 
-from danae_lite import angles
-from danae_lite.data import broad
+from danae_lite.data import broad, frames
 from danae_lite.research import broad_benchmark
 from danae_lite.research.ahrs import broad_reference
 from danae_lite.data.recording import DataError, Recording
@@ -115,20 +114,20 @@ def published_dir(broad_data_dir: Path) -> Path:
 
 def test_quat_multiply_matches_scipy_composition():
     p, q = random_rotations(50, 1), random_rotations(50, 2)
-    got = angles.quat_multiply(p.as_quat(), q.as_quat())
+    got = frames.quat_multiply(p.as_quat(), q.as_quat())
     assert rot_angle(got, (p * q).as_quat()).max() < 1e-12
-    one = angles.quat_multiply(p[0].as_quat(), q.as_quat())  # broadcast a single quaternion
+    one = frames.quat_multiply(p[0].as_quat(), q.as_quat())  # broadcast a single quaternion
     assert rot_angle(one, (p[0] * q).as_quat()).max() < 1e-12
 
 
 def test_enu_nwu_conversion_turns_north_onto_x():
     # a body whose x axis points north is rz(+90°) in ENU and the identity in NWU
-    q = angles.enu_to_nwu(rz(np.pi / 2).as_quat()[None])
+    q = frames.enu_to_nwu(rz(np.pi / 2).as_quat()[None])
     assert rot_angle(q, Rotation.identity().as_quat()[None])[0] < 1e-12
     r = random_rotations(20, 3).as_quat()
-    assert rot_angle(angles.nwu_to_enu(angles.enu_to_nwu(r)), r).max() < 1e-12
+    assert rot_angle(frames.nwu_to_enu(frames.enu_to_nwu(r)), r).max() < 1e-12
     # vectors: ENU east (1, 0, 0) is NWU (0, -1, 0)
-    np.testing.assert_allclose(Rotation.from_quat(angles.enu_to_nwu(Rotation.identity().as_quat()))
+    np.testing.assert_allclose(Rotation.from_quat(frames.enu_to_nwu(Rotation.identity().as_quat()))
                                .apply([1.0, 0.0, 0.0]), [0.0, -1.0, 0.0], atol=1e-12)
 
 
@@ -196,7 +195,7 @@ def test_metric_is_the_same_in_enu_and_nwu_and_ignores_quaternion_sign():
     truth, est = random_rotations(100, 9), random_rotations(100, 10)
     mov = np.ones(100, bool)
     a = broad_benchmark.benchmark_rmse(est.as_quat(), truth.as_quat(), mov)
-    b = broad_benchmark.benchmark_rmse(angles.enu_to_nwu(est.as_quat()), angles.enu_to_nwu(truth.as_quat()), mov)
+    b = broad_benchmark.benchmark_rmse(frames.enu_to_nwu(est.as_quat()), frames.enu_to_nwu(truth.as_quat()), mov)
     c = broad_benchmark.benchmark_rmse(-est.as_quat(), 2.0 * truth.as_quat(), mov)  # sign and norm
     for m in broad_benchmark.METRICS:
         assert getattr(b, m) == pytest.approx(getattr(a, m), rel=1e-10)
@@ -283,7 +282,7 @@ def test_ground_truth_gaps_are_filled_marked_and_ignored_by_evaluate(tmp_path):
     assert rot_angle(q[150:160], ref).max() < 1e-12                      # slerp inside
     # evaluate() == the metric on the raw ground truth with its NaN rows (the benchmark's nanmean)
     est = (Rotation.from_rotvec([0.01, -0.02, 0.05]) * Rotation.from_quat(q)).as_quat()
-    raw = angles.enu_to_nwu(data["opt_quat"][:, [1, 2, 3, 0]])
+    raw = frames.enu_to_nwu(data["opt_quat"][:, [1, 2, 3, 0]])
     got, want = broad_benchmark.evaluate(rec, est), broad_benchmark.benchmark_rmse(est, raw, data["movement"])
     assert got.as_dict() == pytest.approx(want.as_dict(), rel=1e-12)
     assert got.n_samples == want.n_samples == 200 - 10
@@ -473,9 +472,9 @@ def test_mahony_equals_ahrs_mahony_from_the_same_initial_state():
     gyro, acc, mag = _smooth_inputs(n, fs, 13)
     q0 = Rotation.from_euler("ZYX", [-80.0, 5.0, -3.0], degrees=True).as_quat()
     ref = ahrs.filters.Mahony(gyr=gyro, acc=acc, mag=mag, frequency=fs, k_P=0.74, k_I=0.3,
-                              q0=angles.nwu_to_enu(q0)[[3, 0, 1, 2]]).Q   # ahrs: Q[t] from Q[t-1], sample t
+                              q0=frames.nwu_to_enu(q0)[[3, 0, 1, 2]]).Q   # ahrs: Q[t] from Q[t-1], sample t
     ours = broad_reference.reference_mahony(gyro[1:], acc[1:], mag[1:], fs, k_P=0.74, k_I=0.3, q0=q0)
-    assert rot_angle(angles.nwu_to_enu(ours), ref[1:, [1, 2, 3, 0]]).max() < 1e-10
+    assert rot_angle(frames.nwu_to_enu(ours), ref[1:, [1, 2, 3, 0]]).max() < 1e-10
 
 
 def test_madgwick_without_mag_equals_ahrs_madgwick_imu():
@@ -612,8 +611,8 @@ def test_ahrs_mahony_reproduces_with_the_benchmark_initial_state(broad_data_dir,
     want = broad_benchmark.published("mahony", published_dir).trials[rec.name]["total_rmse_deg"]
     q0 = broad_reference.benchmark_initial_quat(rec.acc[0], rec.mag[0])
     q = ahrs.filters.Mahony(gyr=rec.gyro, acc=rec.acc, mag=rec.mag, frequency=rec.fs, k_P=0.74, k_I=0.0012,
-                            q0=angles.nwu_to_enu(q0)[[3, 0, 1, 2]]).Q[:, [1, 2, 3, 0]]
-    assert broad_benchmark.evaluate(rec, angles.enu_to_nwu(q)).total_rmse_deg == pytest.approx(want, rel=1e-3)
+                            q0=frames.nwu_to_enu(q0)[[3, 0, 1, 2]]).Q[:, [1, 2, 3, 0]]
+    assert broad_benchmark.evaluate(rec, frames.enu_to_nwu(q)).total_rmse_deg == pytest.approx(want, rel=1e-3)
 
 
 # --- the comparison script ----------------------------------------------------------------------

@@ -42,7 +42,8 @@ def test_cache_defaults_to_the_user_cache_folder_and_can_be_turned_off(monkeypat
 
 
 def test_full_and_fast_networks_are_kept_apart_each_capped(monkeypatch, tmp_path):
-    from danae_lite.runtime import DEFAULT_CACHE_GB, RunSettings, kernel_environment
+    from danae_lite.runtime import DEFAULT_CACHE_GB, RunSettings
+    from tools.execute import kernel_environment
 
     monkeypatch.setenv("DANAE_CACHE", str(tmp_path))
     monkeypatch.delenv("DANAE_CACHE_GB", raising=False)

@@ -6,8 +6,7 @@ import pytest
 
 from danae_lite.data.recording import DataError
 from danae_lite.data import experiments
-from danae_lite.data.experiments import (Experiment, load_experiment, oxiod_root,
-                                         ucs_file)
+from danae_lite.data.experiments import Experiment, load_experiment, oxiod_root
 from danae_lite.data.oxiod import load_recording
 
 from conftest import write_ucs
@@ -59,7 +58,6 @@ def test_partial_oxiod_folder_raises(tmp_oxiod):
 
 def test_real_ucs_split(tmp_path, capsys):
     path = write_ucs(tmp_path / "ucs" / "full_dataset" / "imu_adis.txt")
-    assert ucs_file(tmp_path) == path
     exp = load_experiment("ucs", tmp_path, fast=True)
     assert (exp.name, exp.data) == ("ucs", "real")
     assert [len(r) for r in exp.train + exp.test] == [240, 60]  # fast mode keeps UCS whole
@@ -74,8 +72,8 @@ def test_ucs_folder_without_file_raises(tmp_path):
 
 
 def test_helpers_return_none_without_data(tmp_path):
-    assert oxiod_root(tmp_path) is None and ucs_file(tmp_path) is None
-    assert oxiod_root() is None and ucs_file() is None  # no data directory given
+    assert oxiod_root(tmp_path) is None
+    assert oxiod_root() is None  # no data directory given
 
 
 def test_library_functions_never_read_the_environment(monkeypatch, tmp_oxiod):

@@ -10,7 +10,7 @@ from scipy.spatial.transform import Rotation
 
 from danae_lite.data.groundtruth import (GlitchReport, clean_mask, detect_glitches,
                                          glitch_table)
-from danae_lite.data.oxiod import gt_glitch_summary, load_recording
+from danae_lite.data.oxiod import load_recording
 from danae_lite.data.recording import Recording
 
 FS = 100.0
@@ -33,7 +33,7 @@ def test_smooth_rotation_is_all_clean():
     rot, gyro = smooth()
     for g in (None, gyro):
         r = detect_glitches(rot.as_quat(), FS, gyro=g)
-        assert r.clean.all() and r.n_bad == 0 and r.fraction_bad == 0.0 and r.n_samples == 1000
+        assert r.clean.all() and r.n_bad == 0 and r.summary()["fraction_bad"] == 0.0 and r.summary()["samples"] == 1000
         assert r.steps.size == r.spikes.size == r.jumps.size == len(r.excursions) == len(r.frozen) == 0
         assert r.threshold_rad == pytest.approx(0.2)
 
@@ -172,15 +172,9 @@ def report(clean: list[bool]) -> GlitchReport:
                         excursions=e.reshape(0, 2), jumps=e, frozen=e.reshape(0, 2))
 
 
-def test_segments_of_a_hand_built_mask():
-    r = report([True, True, False, True, True, True, False, False, True])
-    assert r.segments(1) == [(0, 2), (3, 6), (8, 9)]
-    assert r.segments(2) == [(0, 2), (3, 6)]
-    assert r.segments(3) == [(3, 6)] and r.segments(4) == []
-    assert (r.n_samples, r.n_bad) == (9, 3) and r.fraction_bad == pytest.approx(1 / 3)
-    assert report([True] * 5).segments(5) == [(0, 5)] and report([False] * 5).segments(1) == []
-    with pytest.raises(ValueError, match="min_length"):
-        r.segments(0)
+def test_counts_of_a_hand_built_mask():
+    s = report([True, True, False, True, True, True, False, False, True]).summary()
+    assert (s["samples"], s["bad_samples"]) == (9, 3) and s["fraction_bad"] == pytest.approx(1 / 3)
 
 
 @pytest.mark.parametrize("quat, fs, kw, match", [
@@ -214,12 +208,11 @@ def test_clean_mask_and_table_from_recordings():
     assert tab.iloc[1].tolist() == ["head", 50, 0, 0, 0, 0, 0, 0.0]
 
 
-def test_oxiod_summary_is_the_same_detection():
+def test_the_same_glitches_without_the_gyro():
     q, _, _ = combined()
-    g, r = gt_glitch_summary(q, FS), detect_glitches(q, FS)
-    assert g["spikes"].tolist() == r.spikes.tolist() == [100, 1500]
-    assert (g["n_jumps"], g["jumps"].tolist(), g["n_excursions"], g["frozen_runs"]) == (1, [799], 1, [(1200, 10)])
-    assert g["bad_samples"] == r.n_bad
+    r = detect_glitches(q, FS)  # as for a recording without a usable gyro
+    assert r.spikes.tolist() == [100, 1500]
+    assert (r.jumps.tolist(), len(r.excursions), r.frozen.tolist()) == ([799], 1, [[1200, 10]])
 
 
 # measured with the gyro (clean_mask / glitch_table defaults):
@@ -244,6 +237,8 @@ def test_real_glitch_counts(oxiod_dir):
     for rec in recs:
         r = detect_glitches(rec.quat, rec.fs, gyro=rec.gyro)
         assert np.array_equal(clean_mask(rec), r.clean)
-        assert min(b - a for a, b in r.segments(20)) >= 20 and len(r.segments(20)) <= 10
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], r.clean.astype(np.int8), [0]])))
+        runs = [b - a for a, b in zip(edges[::2], edges[1::2]) if b - a >= 20]  # clean runs of >= 20 samples
+        assert 0 < len(runs) <= 10
         # without the gyro more steps stay unpaired, so more samples are lost
         assert detect_glitches(rec.quat, rec.fs).n_bad >= r.n_bad

@@ -15,9 +15,9 @@ import pytest
 import scipy.linalg
 from scipy.spatial.transform import Rotation
 
-from danae_lite.kalman.filter import (TRIG_NUMPY, kalman_filter, kf_step, measurement_rows,
-                                      recursion, run_kf, sensor_arrays)
+from danae_lite.kalman.filter import kalman_filter, kf_step, measurement_rows, recursion, run_kf, sensor_arrays
 from danae_lite.kalman.gains import gain_sequence, steady_state
+from danae_lite.kalman.grid import TRIG_NUMPY
 from danae_lite.kalman.model import (AUTHORS_DT, KFConfig, accel_tilt, euler_rates,
                                      mag_heading, system_matrices)
 from danae_lite.data.recording import Recording
@@ -508,7 +508,6 @@ def test_remembered_blocks_give_exactly_the_gains_of_a_fresh_run():
     dt = 0.01
 
     def fresh(n_max):
-        gains._GAIN_CACHE.clear()
         gains._BLOCK_CACHE.clear()
         return gains.gain_sequence(dt, cfg, n_max=n_max, method="block")
 
@@ -516,16 +515,12 @@ def test_remembered_blocks_give_exactly_the_gains_of_a_fresh_run():
     assert full.converged and 100 < len(full) < 100_000
     for n_max in (7, len(full) - 1, len(full), len(full) + 50):
         expected = fresh(n_max)
-        gains._GAIN_CACHE.clear()  # keep the remembered blocks of a longer run
-        gains._BLOCK_CACHE.clear()
-        gains.gain_sequence(dt, cfg, n_max=100_000, method="block")
-        gains._GAIN_CACHE.clear()
+        fresh(100_000)  # remember the blocks of a longer run
         got = gains.gain_sequence(dt, cfg, n_max=n_max, method="block")
         assert got.converged == expected.converged == (n_max >= len(full))
         np.testing.assert_array_equal(got.K, expected.K)
         np.testing.assert_array_equal(got.P_post, expected.P_post)
     # a short run first, then a longer request: computed again, not served from the short one
     fresh(7)
-    gains._GAIN_CACHE.clear()
     again = gains.gain_sequence(dt, cfg, n_max=100_000, method="block")
     np.testing.assert_array_equal(again.K, full.K)

@@ -1,4 +1,4 @@
-"""OxIOD loader: columns and conventions, strict validation, glitch report, and the real files."""
+"""OxIOD loader: columns and conventions, strict validation, ground-truth glitches, and the real files."""
 from __future__ import annotations
 
 import time
@@ -10,7 +10,8 @@ from scipy.signal import savgol_filter
 from scipy.spatial.transform import Rotation
 
 from danae_lite.data.recording import DataError
-from danae_lite.data.oxiod import find_recordings, gt_glitch_summary, load_recording
+from danae_lite.data.groundtruth import detect_glitches
+from danae_lite.data.oxiod import load_recording
 
 from conftest import edit_cell, edit_line, synthetic_oxiod, write_rows
 
@@ -137,26 +138,6 @@ def test_zero_quaternion(tmp_oxiod):
         load_recording(tmp_oxiod.syn / "imu2.csv")
 
 
-# --- find_recordings ------------------------------------------------------------------------
-
-def test_find_recordings_sorted_numerically(tmp_oxiod):
-    for p in ("imu10.csv", "vi10.csv", "notes.txt", "imu_x.csv"):
-        (tmp_oxiod.syn / p).write_text("")
-    names = [p.name for p in find_recordings(tmp_oxiod.root)]
-    assert names == ["imu2.csv", "imu3.csv", "imu4.csv", "imu7.csv", "imu10.csv"]
-
-
-def test_find_recordings_missing_folder(tmp_oxiod):
-    with pytest.raises(DataError, match=r"data9[/\\]syn: no such OxIOD folder.*found in .*handheld: data1"):
-        find_recordings(tmp_oxiod.root, folder="data9")
-
-
-def test_find_recordings_empty_folder(tmp_path):
-    (tmp_path / "pocket" / "data1" / "syn").mkdir(parents=True)
-    with pytest.raises(DataError, match=r"syn: no imuK\.csv files"):
-        find_recordings(tmp_path, setting="pocket")
-
-
 # --- ground-truth glitches -------------------------------------------------------------------
 
 def glitchy_quats() -> np.ndarray:
@@ -172,24 +153,25 @@ def glitchy_quats() -> np.ndarray:
     return q
 
 
-def test_glitch_summary_counts_each_kind():
-    g = gt_glitch_summary(glitchy_quats(), fs=100.0)
-    assert g["threshold_rad"] == pytest.approx(0.2)
-    assert g["n_steps"] == 3
-    assert (g["n_spikes"], g["spikes"].tolist()) == (1, [50])
-    assert (g["n_jumps"], g["jumps"].tolist()) == (1, [120])
-    assert (g["n_frozen_runs"], g["frozen_runs"], g["frozen_samples"]) == (1, [(150, 6)], 6)
-    assert g["max_step_rad"] == pytest.approx(0.5, abs=0.011)
+def test_glitches_of_each_kind():
+    r = detect_glitches(glitchy_quats(), 100.0)  # without the gyro, as for an OxIOD ground truth
+    assert r.threshold_rad == pytest.approx(0.2)
+    assert r.steps.size == 3
+    assert r.spikes.tolist() == [50]
+    assert r.jumps.tolist() == [120]
+    assert r.frozen.tolist() == [[150, 6]]
+    assert r.max_step_rad == pytest.approx(0.5, abs=0.011)
 
 
 def test_glitch_threshold_scales_with_rate():
-    g = gt_glitch_summary(glitchy_quats(), fs=10.0)  # 2 rad per sample: nothing is a glitch
-    assert (g["n_steps"], g["n_spikes"], g["n_jumps"]) == (0, 0, 0)
+    r = detect_glitches(glitchy_quats(), 10.0)  # 2 rad per sample: nothing is a glitch
+    assert (r.steps.size, r.spikes.size, r.jumps.size) == (0, 0, 0)
 
 
-def test_glitch_summary_in_meta(tmp_oxiod):
-    g = load_recording(tmp_oxiod.syn / "imu2.csv").meta["gt_glitches"]
-    assert (g["n_steps"], g["n_frozen_runs"]) == (0, 0)
+def test_synthetic_ground_truth_has_no_glitches(tmp_oxiod):
+    rec = load_recording(tmp_oxiod.syn / "imu2.csv")
+    r = detect_glitches(rec.quat, rec.fs)
+    assert (r.steps.size, len(r.frozen)) == (0, 0)
 
 
 # --- the real files (DANAE_DATA) ---------------------------------------------------------------
@@ -205,8 +187,6 @@ def real(oxiod_dir):
 
 @pytest.mark.realdata
 def test_real_rows_rate_and_finite(real, oxiod_dir):
-    ks = [int(p.stem[3:]) for p in find_recordings(oxiod_dir)]
-    assert ks == sorted(ks) and set(ROWS) <= set(ks)
     for k, rec in real.items():
         assert len(rec) == ROWS[k] and rec.fs == 100.0 and rec.name == f"handheld/data1/imu{k}"
         for arr in (rec.gyro, rec.acc, rec.mag, rec.quat):
@@ -266,9 +246,9 @@ def test_real_glitch_steps_match_scipy(real):
     for rec in real.values():
         rot = Rotation.from_quat(rec.quat)
         steps = (rot[:-1].inv() * rot[1:]).magnitude()
-        g = rec.meta["gt_glitches"]
-        assert g["n_steps"] == int((steps > 0.2).sum()) > 0
-        assert g["max_step_rad"] == pytest.approx(steps.max(), abs=1e-6)
+        r = detect_glitches(rec.quat, rec.fs)
+        assert r.steps.size == int((steps > 0.2).sum()) > 0
+        assert r.max_step_rad == pytest.approx(steps.max(), abs=1e-6)
 
 
 @pytest.mark.realdata

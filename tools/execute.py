@@ -26,8 +26,8 @@ from datetime import datetime, timezone
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from danae_lite.runtime import (CACHE_ENV, DATA_ENV, DEFAULT_CACHE_GB, FAST_ENV,
-                                JOBS_ENV, RunSettings, kernel_environment)
+from danae_lite.runtime import (CACHE_ENV, CACHE_GB_ENV, DATA_ENV, DEFAULT_CACHE_GB, FAST_ENV,
+                                JOBS_ENV, SCHEDULER_ENV, RunSettings)
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -337,7 +337,7 @@ def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLik
     out_path
         Where to write the executed notebook (nbformat v4); may be ``path``.
     env
-        The whole environment of the kernel (:func:`~danae_lite.runtime.kernel_environment`).
+        The whole environment of the kernel (:func:`kernel_environment`).
     data_dir, fast, data_sha256
         The data directory and fast mode that ``env`` gives the kernel, and the data's
         :func:`data_fingerprint`, for the record (:func:`stamp`).
@@ -415,9 +415,29 @@ def _refusal(data_dir: Path | None, fast: bool) -> str | None:
             "to re-execute them in place")
 
 
+def kernel_environment(*, data_dir: Path | None, cache: Path | None, fast: bool, n_jobs: int,
+                       max_gb: float = DEFAULT_CACHE_GB, base: Mapping[str, str] | None = None,
+                       scheduler_address: str | None = None) -> dict[str, str]:
+    """The environment of a child process (a chapter's kernel) that is to run with these settings.
+
+    ``base`` (default: this process's environment) without any ``DANAE_*`` variable, plus ``DANAE_FAST``,
+    ``DANAE_JOBS``, ``DANAE_CACHE`` (the cache root, or ``off`` for None), ``DANAE_CACHE_GB`` and,
+    when set, ``DANAE_DATA`` and ``DANAE_SCHEDULER``: what the child's
+    :meth:`~danae_lite.runtime.RunSettings.from_env` reads back.
+    """
+    env = {k: v for k, v in (os.environ if base is None else base).items() if not k.startswith("DANAE_")}
+    env.update({FAST_ENV: "1" if fast else "0", JOBS_ENV: str(n_jobs), CACHE_ENV: str(cache) if cache else "off",
+                CACHE_GB_ENV: repr(float(max_gb))})
+    if data_dir is not None:
+        env[DATA_ENV] = str(data_dir)
+    if scheduler_address is not None:
+        env[SCHEDULER_ENV] = scheduler_address
+    return env
+
+
 def _kernel_setup(data: Path | None, cache: Path | None, *, fast: bool, jobs: int,
                   cache_gb: float, scheduler: str | None = None) -> tuple[dict[str, str], Path | None]:
-    """The kernels' environment (:func:`~danae_lite.runtime.kernel_environment`, inline figures, a
+    """The kernels' environment (:func:`kernel_environment`, inline figures, a
     fixed hash seed) and this mode's network cache folder (created; None without a cache)."""
     if cache is not None:
         cache.mkdir(parents=True, exist_ok=True)

@@ -10,14 +10,21 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from ..runtime import DATA_ENV
-from ..data.experiments import (FAST_SAMPLES, PAPER_SPLIT_FOLDER, PAPER_SPLIT_TEST,
-                               PAPER_SPLIT_TRAIN)
+from ..data.experiments import FAST_SAMPLES
 from ..data import broad as broad_data
 
 if TYPE_CHECKING:
     from ..runtime import RunSettings
 
-__all__ = ["UsageError", "load_data"]
+__all__ = ["PAPER_SPLIT_FOLDER", "PAPER_SPLIT_TEST", "PAPER_SPLIT_TRAIN", "UsageError", "load_data"]
+
+PAPER_SPLIT_FOLDER = ("slow walking", "data1")
+"""Setting and folder of the paper's own OxIOD split (``--split paper``)."""
+PAPER_SPLIT_TRAIN = (2, 3, 4, 5, 6, 7, 8)
+"""The training recordings (K of imuK) in :data:`PAPER_SPLIT_FOLDER`: the paper names none; the
+authors' code trains on imu2-imu8 (its instructions mention imu2-imu7)."""
+PAPER_SPLIT_TEST = (1,)
+"""The paper's test recording in :data:`PAPER_SPLIT_FOLDER`."""
 
 _IMU_RE = re.compile(r"imu(\d+)\.csv")
 

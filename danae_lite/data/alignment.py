@@ -139,33 +139,41 @@ def _angle(a: Array, b: Array) -> Array:
     return np.arccos(np.clip(c, -1.0, 1.0))
 
 
+def _steps(rec: Recording) -> tuple[Rotation, Array, Array]:
+    """The ground truth as rotations, the rotation vector of each of its steps (sample t to
+    t + 1, body frame) [rad] and the gyro's mean over each step [rad/s]."""
+    rot = Rotation.from_quat(rec.quat)
+    return rot, (rot[:-1].inv() * rot[1:]).as_rotvec(), 0.5 * (rec.gyro[:-1] + rec.gyro[1:])
+
+
+def _lagged(n: int, lag: int) -> tuple[slice, slice]:
+    """Slices of two series of length ``n`` that pair element ``t + lag`` of the first with
+    element ``t`` of the second."""
+    length = max(0, n - abs(lag))
+    return slice(max(0, lag), max(0, lag) + length), slice(max(0, -lag), max(0, -lag) + length)
+
+
 def rate_lag(rec: Recording, clean: ArrayLike | None = None, max_lag_s: float = MAX_LAG_S) -> int:
     """Delay of the ground truth behind the gyro [samples], from the cross-correlation of the
     rotation-rate magnitudes (which do not depend on the frames). Positive: the ground truth
     shows a motion ``lag`` samples after the gyro. Searched within ``±max_lag_s``."""
-    rot = Rotation.from_quat(rec.quat)
-    nb = np.linalg.norm((rot[:-1].inv() * rot[1:]).as_rotvec(), axis=1) * rec.fs
-    ns = np.linalg.norm(0.5 * (rec.gyro[:-1] + rec.gyro[1:]), axis=1)
+    _, steps, w_sens = _steps(rec)
+    nb = np.linalg.norm(steps, axis=1) * rec.fs
+    ns = np.linalg.norm(w_sens, axis=1)
     ok = np.ones(len(nb), dtype=bool) if clean is None else np.asarray(clean)[:-1] & np.asarray(clean)[1:]
     a = np.where(ok, nb, np.median(nb[ok]) if ok.any() else 0.0)
     a, b = a - a.mean(), ns - ns.mean()
     m = int(round(max_lag_s * rec.fs))
-    n = len(a)
-    scores = [float(np.dot(a[max(0, k):n + min(0, k)], b[max(0, -k):n - max(0, k)])) for k in range(-m, m + 1)]
+    scores = [float(np.dot(a[body], b[sens])) for body, sens in (_lagged(len(a), k) for k in range(-m, m + 1))]
     return int(np.argmax(scores)) - m
 
 
 def _pairs(rec: Recording, clean: NDArray[np.bool_], min_rate: float, lag: int) -> tuple[Array, Array, Array, Array]:
     """(body rates, gyro rates, body up, sensor specific force) on clean samples; the body
     rate at ``t + lag`` is paired with the gyro at ``t``."""
-    rot = Rotation.from_quat(rec.quat)
-    w_body = (rot[:-1].inv() * rot[1:]).as_rotvec() * rec.fs
-    w_sens = 0.5 * (rec.gyro[:-1] + rec.gyro[1:])
-    ok_b = clean[:-1] & clean[1:]
-    if lag > 0:
-        w_body, ok_b, w_sens = w_body[lag:], ok_b[lag:], w_sens[:-lag]
-    elif lag < 0:
-        w_body, ok_b, w_sens = w_body[:lag], ok_b[:lag], w_sens[-lag:]
+    rot, steps, w_sens = _steps(rec)
+    body, sens = _lagged(len(steps), lag)
+    w_body, ok_b, w_sens = steps[body] * rec.fs, (clean[:-1] & clean[1:])[body], w_sens[sens]
     ok = ok_b & (np.linalg.norm(w_sens, axis=1) > min_rate)
     n = max(1, int(round(SMOOTH_S * rec.fs)))
     up_body = uniform_filter1d(rot.inv().apply([0.0, 0.0, 1.0]), n, axis=0, mode="nearest")
@@ -187,15 +195,13 @@ def estimate_alignment(recs: Sequence[Recording], clean: Sequence[ArrayLike] | N
     """
     if not recs:
         raise ValueError("need at least one recording to estimate the alignment")
-    masks = [np.ones(len(r), dtype=bool) if clean is None else np.asarray(c, dtype=bool) for r, c in
-             zip(recs, clean if clean is not None else [None] * len(recs))]
+    masks = [np.ones(len(r), dtype=bool) for r in recs] if clean is None else [np.asarray(c, dtype=bool) for c in clean]
     for r, m in zip(recs, masks):
         if m.shape != (len(r),):
             raise ValueError(f"{r.name}: clean mask has shape {m.shape}, expected ({len(r)},)")
     lags = {r.name: rate_lag(r, m) for r, m in zip(recs, masks)}
     parts = [_pairs(r, m, min_rate, lags[r.name]) for r, m in zip(recs, masks)]
-    wb, ws = np.concatenate([p[0] for p in parts]), np.concatenate([p[1] for p in parts])
-    ub, fs_ = np.concatenate([p[2] for p in parts]), np.concatenate([p[3] for p in parts])
+    wb, ws, ub, fs_ = (np.concatenate(column) for column in zip(*parts))
     if len(wb) < 3 or len(ub) < 3:
         raise ValueError("too few clean, moving samples to estimate the sensor-to-body rotation")
     fs_unit = fs_ / np.linalg.norm(fs_, axis=1, keepdims=True)
@@ -208,13 +214,9 @@ def estimate_alignment(recs: Sequence[Recording], clean: Sequence[ArrayLike] | N
         res = np.linalg.norm(rot.apply(ws) - wb, axis=1)
         keep = res <= TRIM_FACTOR * np.median(res)
     # heading of the horizontal magnetic field in the ground-truth frame
-    sins, coss = [], []
-    for r, m in zip(recs, masks):
-        mw = Rotation.from_quat(r.quat[m]).apply(rot.apply(r.mag[m]))
-        h = np.arctan2(mw[:, 1], mw[:, 0])
-        sins.append(np.sin(h))
-        coss.append(np.cos(h))
-    north = float(np.arctan2(np.concatenate(sins).mean(), np.concatenate(coss).mean()))
+    mag_truth = np.concatenate([Rotation.from_quat(r.quat[m]).apply(rot.apply(r.mag[m])) for r, m in zip(recs, masks)])
+    heading = np.arctan2(mag_truth[:, 1], mag_truth[:, 0])
+    north = float(np.arctan2(np.sin(heading).mean(), np.cos(heading).mean()))
     return FrameAlignment(
         sensor_to_body=rot.as_quat(),
         north_yaw=north,

@@ -58,6 +58,7 @@ What :func:`load_trial` builds (a :class:`~danae_lite.data.recording.Recording`,
 """
 from __future__ import annotations
 
+import json
 import math
 import os
 import re
@@ -67,11 +68,11 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from numpy.typing import NDArray
+from numpy.typing import ArrayLike, NDArray
 
 from . import experiments
-from .parsing import read_json
-from ..angles import G, enu_to_nwu
+from ..angles import G
+from .frames import enu_to_nwu
 from .recording import DataError, Recording
 
 Array = NDArray[np.float64]
@@ -245,6 +246,17 @@ def read_mat(path: Path) -> dict[str, Any]:
         raise DataError(f"{path}: missing key(s) {', '.join(repr(k) for k in missing)}; a BROAD trial "
                         f"holds {', '.join(_REQUIRED)} (found: {', '.join(have) or 'nothing'})")
     return data
+
+
+def read_json(path: Path, what: str = "file") -> object:
+    """Parse a JSON file (``trials.json``, the published results); a missing file or invalid JSON
+    raises DataError naming the file."""
+    if not path.is_file():
+        raise DataError(f"{path}: {what} not found")
+    try:
+        return json.loads(path.read_text(encoding="utf-8"))
+    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
+        raise DataError(f"{path}: not valid JSON ({exc})") from exc
 
 
 def _ground_truth(path: Path, quat_wxyz: Array) -> tuple[Array, NDArray[np.bool_]]:

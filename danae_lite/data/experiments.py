@@ -37,13 +37,6 @@ OXIOD_TRAIN = (3, 4, 7)
 """OxIOD recordings (K of imuK) used for training."""
 OXIOD_TEST = (2,)
 """OxIOD recordings used for testing."""
-PAPER_SPLIT_FOLDER = ("slow walking", "data1")
-"""Setting and folder of the paper's own OxIOD split (``--split paper``)."""
-PAPER_SPLIT_TRAIN = (2, 3, 4, 5, 6, 7, 8)
-"""The training recordings (K of imuK) in :data:`PAPER_SPLIT_FOLDER`: the paper names none; the
-authors' code trains on imu2-imu8 (its instructions mention imu2-imu7)."""
-PAPER_SPLIT_TEST = (1,)
-"""The paper's test recording in :data:`PAPER_SPLIT_FOLDER`."""
 UCS_RELPATH = Path("full_dataset") / "imu_adis.txt"
 """Location of the ADIS file inside ``<data dir>/ucs``."""
 TRAIN_FRACTION = 0.8
@@ -52,8 +45,8 @@ FAST_SAMPLES = 1500
 """Samples kept per real OxIOD recording in fast mode (15 s at 100 Hz)."""
 FAST_DURATION = {"handheld": 20.0, "underwater": 300.0}
 """Simulated duration per recording in fast mode [s]."""
-NAMES = ("oxiod", "ucs")
-
+NAMES = {"oxiod": "OxIOD", "ucs": "UCS"}
+"""The experiments of this module, and how a note names their dataset."""
 
 
 @dataclass
@@ -98,15 +91,7 @@ def fast_note(fast: bool, limit: int) -> str:
 def oxiod_root(data_dir: str | os.PathLike[str] | None = None) -> Path | None:
     """Return ``<data dir>/oxiod`` if that folder exists, else None."""
     base = existing_dir(data_dir)
-    root = base / "oxiod" if base is not None else None
-    return root if root is not None and root.is_dir() else None
-
-
-def ucs_file(data_dir: str | os.PathLike[str] | None = None) -> Path | None:
-    """Return ``<data dir>/ucs/full_dataset/imu_adis.txt`` if it exists, else None."""
-    base = existing_dir(data_dir)
-    path = base / "ucs" / UCS_RELPATH if base is not None else None
-    return path if path is not None and path.is_file() else None
+    return base / "oxiod" if base is not None and (base / "oxiod").is_dir() else None
 
 
 def where(base: Path | None) -> str:
@@ -130,9 +115,12 @@ def _real_oxiod(root: Path, fast: bool) -> Experiment:
     return Experiment("oxiod", "real", train, test, note)
 
 
-def _real_ucs(path: Path) -> Experiment:
-    rec = ucs.load_recording(path)
-    train, test = ucs.split_train_test(rec, TRAIN_FRACTION)
+def _real_ucs(folder: Path) -> Experiment:
+    path = folder / UCS_RELPATH
+    if not path.is_file():
+        raise DataError(f"{folder} exists but lacks {path}; expected the UCS layout "
+                        "<ucs>/full_dataset/imu_adis.txt")
+    train, test = ucs.split_train_test(ucs.load_recording(path), TRAIN_FRACTION)
     note = (f"Real UCS from {path}: first {TRAIN_FRACTION:.0%} ({len(train)} samples) train, "
             f"last {1 - TRAIN_FRACTION:.0%} ({len(test)} samples) test.")
     return Experiment("ucs", "real", [train], [test], note)
@@ -141,6 +129,11 @@ def _real_ucs(path: Path) -> Experiment:
 def load_oxiod_files(paths: list[Path], fast: bool) -> list[Recording]:
     """OxIOD recordings ``imuK.csv`` (with ``viK.csv`` beside each), cut in fast mode."""
     return fast_cut([oxiod.load_recording(p) for p in paths], fast, FAST_SAMPLES)
+
+
+def _check_name(name: str) -> None:
+    if name not in NAMES:
+        raise ValueError(f"unknown experiment {name!r}; valid: {', '.join(NAMES)}")
 
 
 def load_experiment(name: str = "oxiod", data_dir: str | os.PathLike[str] | None = None, *,
@@ -156,19 +149,13 @@ def load_experiment(name: str = "oxiod", data_dir: str | os.PathLike[str] | None
     seed : base seed of the simulated stand-in.
     verbose : print the experiment's note.
     """
-    if name not in NAMES:
-        raise ValueError(f"unknown experiment {name!r}; valid: {', '.join(NAMES)}")
+    _check_name(name)
     base = existing_dir(data_dir)
-    if name == "oxiod":
-        root = oxiod_root(base) if base is not None else None
-        exp = _real_oxiod(root, fast) if root is not None else _simulated_oxiod(base, fast, seed)
+    folder = base / name if base is not None else None
+    if folder is None or not folder.is_dir():
+        exp = _simulated(name, f"No real {NAMES[name]} data found {where(base)}: ", fast, seed)
     else:
-        folder = base / "ucs" if base is not None else None
-        path = ucs_file(base) if base is not None else None
-        if folder is not None and folder.is_dir() and path is None:
-            raise DataError(f"{folder} exists but lacks {folder / UCS_RELPATH}; expected the UCS layout "
-                            "<ucs>/full_dataset/imu_adis.txt")
-        exp = _real_ucs(path) if path is not None else _simulated_ucs(base, fast, seed)
+        exp = _real_oxiod(folder, fast) if name == "oxiod" else _real_ucs(folder)
     if verbose:
         print(exp.note)
     return exp
@@ -179,33 +166,27 @@ def simulated_experiment(name: str = "oxiod", *, fast: bool = False, seed: int =
     """The simulator's stand-in for ``"oxiod"`` (handheld scenario) or ``"ucs"``
     (underwater), whatever data directory is set: the same recordings :func:`load_experiment`
     falls back to."""
-    if name not in NAMES:
-        raise ValueError(f"unknown experiment {name!r}; valid: {', '.join(NAMES)}")
-    make = {"oxiod": _simulated_oxiod, "ucs": _simulated_ucs}[name]
-    exp = make(None, fast, seed)
-    for label in ("OxIOD", "UCS"):
-        exp.note = exp.note.replace(f"No real {label} data found {where(None)}: ", "Simulated: ")
+    _check_name(name)
+    exp = _simulated(name, "Simulated: ", fast, seed)
     if verbose:
         print(exp.note)
     return exp
 
 
-def _simulated_oxiod(base: Path | None, fast: bool, seed: int) -> Experiment:
+def _simulated(name: str, lead: str, fast: bool, seed: int) -> Experiment:
+    """The simulated stand-in for ``name``, its note starting with ``lead``: four handheld
+    recordings (seeds ``seed + 0..3``, test = the first) or one underwater recording split 80/20."""
     from .simulate import simulate
 
-    duration = FAST_DURATION["handheld"] if fast else None
-    recs = [simulate("handheld", duration=duration, seed=seed + i, name=f"sim-handheld-{i}") for i in range(4)]
-    note = (f"No real OxIOD data found {where(base)}: the handheld simulator stands in "
-            f"(train sim-handheld-1..3, test sim-handheld-0, {recs[0].duration:g} s each).")
-    return Experiment("oxiod", "simulated", recs[1:], recs[:1], note)
-
-
-def _simulated_ucs(base: Path | None, fast: bool, seed: int) -> Experiment:
-    from .simulate import simulate
-
+    if name == "oxiod":
+        duration = FAST_DURATION["handheld"] if fast else None
+        recs = [simulate("handheld", duration=duration, seed=seed + i, name=f"sim-handheld-{i}") for i in range(4)]
+        note = (f"{lead}the handheld simulator stands in "
+                f"(train sim-handheld-1..3, test sim-handheld-0, {recs[0].duration:g} s each).")
+        return Experiment("oxiod", "simulated", recs[1:], recs[:1], note)
     duration = FAST_DURATION["underwater"] if fast else None
     rec = simulate("underwater", duration=duration, seed=seed, name="sim-underwater-0")
     train, test = ucs.split_train_test(rec, TRAIN_FRACTION)
-    note = (f"No real UCS data found {where(base)}: the underwater simulator stands in "
+    note = (f"{lead}the underwater simulator stands in "
             f"({rec.duration:g} s, first {TRAIN_FRACTION:.0%} train, last {1 - TRAIN_FRACTION:.0%} test).")
     return Experiment("ucs", "simulated", [train], [test], note)

@@ -24,7 +24,7 @@ sample i to i+1, ``dt = 1 / fs`` [s], ``thr = max_rate * dt`` and ``quiet = quie
   steps inside are used up. A false pairing only marks bad the samples between two glitches.
 * Isolated jump: a big step i that starts no excursion. ``margin`` [s] (``m = ceil(margin *
   fs)`` samples, at least 1) on each side is bad: samples i-m+1..i+m. Which side is offset
-  cannot be told, so the mask only cuts the record there (see :meth:`GlitchReport.segments`).
+  cannot be told, so the mask only cuts the record there.
 
 Measured on OxIOD handheld/data1 (imu2, 3, 4, 7) to choose these. The gyro never exceeds
 4.2 rad/s (0.042 rad per sample), so every step above 0.2 rad is a ground-truth glitch and the
@@ -80,24 +80,15 @@ class GlitchReport:
     frozen: Index
 
     @property
-    def n_samples(self) -> int:
-        """Number of samples N."""
-        return int(self.clean.size)
-
-    @property
     def n_bad(self) -> int:
         """Number of samples that are not clean."""
         return int(self.clean.size - np.count_nonzero(self.clean))
 
-    @property
-    def fraction_bad(self) -> float:
-        """Fraction of bad samples, in [0, 1]."""
-        return self.n_bad / self.n_samples
-
     def summary(self) -> dict[str, int | float]:
-        """Counts as plain numbers; ``frozen_samples`` counts the stale samples (run length - 1)."""
+        """Counts as plain numbers; ``frozen_samples`` counts the stale samples (run length - 1),
+        ``fraction_bad`` is bad samples / samples, in [0, 1]."""
         return {
-            "samples": self.n_samples,
+            "samples": int(self.clean.size),
             "big_steps": int(self.steps.size),
             "spikes": int(self.spikes.size),
             "excursions": int(len(self.excursions)),
@@ -106,16 +97,9 @@ class GlitchReport:
             "frozen_runs": int(len(self.frozen)),
             "frozen_samples": int(np.sum(self.frozen[:, 1] - 1)),
             "bad_samples": self.n_bad,
-            "fraction_bad": float(self.fraction_bad),
+            "fraction_bad": self.n_bad / self.clean.size,
             "max_step_rad": float(self.max_step_rad),
         }
-
-    def segments(self, min_length: int = 1) -> list[tuple[int, int]]:
-        """Clean contiguous runs ``[start, stop)`` of at least ``min_length`` samples, in order."""
-        if int(min_length) != min_length or min_length < 1:
-            raise ValueError(f"min_length must be a whole number of samples >= 1, got {min_length!r}")
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], self.clean.astype(np.int8), [0]])))
-        return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2]) if b - a >= min_length]
 
 
 def _checked(quat: ArrayLike, fs: float, gyro: ArrayLike | None) -> tuple[np.ndarray, np.ndarray | None]:

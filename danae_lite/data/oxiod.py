@@ -37,8 +37,12 @@ Measured on handheld/data1 imu2, imu3, imu4, imu7 (all samples, Vicon ``u = R.T 
   each ground-truth glitch): it is minus the kinematic acceleration, as the iOS sign
   convention says.
 
-The ground truth has glitches that the IMU does not show; :func:`gt_glitch_summary` counts
-them (``meta["gt_glitches"]``) without changing the data.
+The ground truth has glitches that the IMU does not show; the loader keeps the data as it is, and
+:func:`danae_lite.data.groundtruth.detect_glitches` finds them. Without the gyro, on handheld/data1
+(steps above 0.2 rad per sample / spikes / excursions / isolated jumps / frozen runs): imu2
+12/2/0/7/2 (13 and 11 samples), imu3 13/1/1/9/1, imu4 8/0/1/6/1, imu7 15/0/3/9/0; the largest
+steps are 2.9-3.14 rad. With the gyro (:func:`~danae_lite.data.groundtruth.clean_mask`) more of
+these steps pair up into excursions.
 """
 from __future__ import annotations
 
@@ -46,7 +50,6 @@ import re
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import ArrayLike
 
 from .parsing import line_spans, parse_numeric, read_bytes
 from .recording import DataError, Recording
@@ -75,55 +78,6 @@ CONVENTIONS = (
 _IMU_RE = re.compile(r"imu(\d+)\.csv")
 
 
-def gt_glitch_summary(quat: ArrayLike, fs: float, *, max_rate: float = 20.0, quiet_fraction: float = 0.25,
-                      min_frozen: int = 5) -> dict[str, object]:
-    """Count ground-truth orientation glitches; the data is not changed.
-
-    A thin view of :func:`danae_lite.data.groundtruth.detect_glitches` without the gyro (its module
-    docstring states the rule): a step is a rotation between consecutive samples above
-    ``thr = max_rate / fs`` (20 rad/s, i.e. 0.2 rad at 100 Hz, far above a hand's motion); a
-    spike is a single sample out and back; an excursion goes out and comes back (to within
-    ``quiet_fraction * thr``) within 1 s; an isolated jump is a step that starts neither; a
-    frozen run is at least ``min_frozen`` consecutive identical quaternions.
-
-    Parameters
-    ----------
-    quat : (N, 4) quaternions, scalar-last.
-    fs : sample rate [Hz].
-
-    Returns
-    -------
-    dict with ``threshold_rad``, ``max_step_rad``, ``n_steps``, ``n_spikes``, ``spikes``
-    (sample indices), ``n_excursions``, ``excursions`` ((K, 2) bad [start, stop) ranges),
-    ``n_jumps``, ``jumps`` (index i of the step i -> i+1), ``n_frozen_runs``, ``frozen_runs``
-    (list of (start, length)), ``frozen_samples`` (their total length) and ``bad_samples``.
-
-    On handheld/data1 (steps / spikes / excursions / isolated jumps / frozen runs): imu2
-    12/2/0/7/2 (13 and 11 samples), imu3 13/1/1/9/1, imu4 8/0/1/6/1, imu7 15/0/3/9/0; the
-    largest steps are 2.9-3.14 rad. With the gyro, :func:`danae_lite.data.groundtruth.clean_mask`
-    pairs more of these steps into excursions.
-    """
-    from .groundtruth import detect_glitches
-
-    r = detect_glitches(quat, fs, max_rate=max_rate, quiet_fraction=quiet_fraction, min_frozen=min_frozen)
-    runs = [(int(s), int(n)) for s, n in r.frozen]
-    return {
-        "threshold_rad": r.threshold_rad,
-        "max_step_rad": r.max_step_rad,
-        "n_steps": int(r.steps.size),
-        "n_spikes": int(r.spikes.size),
-        "spikes": r.spikes,
-        "n_excursions": int(len(r.excursions)),
-        "excursions": r.excursions,
-        "n_jumps": int(r.jumps.size),
-        "jumps": r.jumps,
-        "n_frozen_runs": len(runs),
-        "frozen_runs": runs,
-        "frozen_samples": int(sum(n for _, n in runs)),
-        "bad_samples": r.n_bad,
-    }
-
-
 def _default_name(imu_path: Path) -> str:
     if imu_path.parent.name == "syn" and len(imu_path.parents) >= 3:
         return f"{imu_path.parents[2].name}/{imu_path.parents[1].name}/{imu_path.stem}"
@@ -146,8 +100,8 @@ def load_recording(imu_path: str | Path, vi_path: str | Path | None = None, *, n
     Recording
         ``source="oxiod"``, fs = 100 Hz; gyro [rad/s], acc [g], mag [µT], quat (Vicon). ``meta``:
         ``gravity`` and ``user_acc`` (N, 3) [g], ``phone_euler`` (N, 3) [rad] (iOS attitude),
-        ``vicon_position`` (N, 3) [m], ``vicon_frame`` (N,), ``imu_path``, ``vi_path``,
-        ``gt_glitches`` (:func:`gt_glitch_summary`) and ``conventions``.
+        ``vicon_position`` (N, 3) [m], ``vicon_frame`` (N,), ``imu_path``, ``vi_path`` and
+        ``conventions``.
 
     Raises
     ------
@@ -196,24 +150,7 @@ def load_recording(imu_path: str | Path, vi_path: str | Path | None = None, *, n
             "vicon_frame": vi[:, 0],
             "imu_path": str(imu_path),
             "vi_path": str(vi_path),
-            "gt_glitches": gt_glitch_summary(quat, FS),
             "conventions": CONVENTIONS,
         },
     )
 
-
-def find_recordings(root: str | Path, setting: str = "handheld", folder: str = "data1") -> list[Path]:
-    """Return the ``imuK.csv`` paths of ``<root>/<setting>/<folder>/syn``, sorted by K (numeric).
-
-    Raises DataError naming the folder when it does not exist or holds no ``imuK.csv``.
-    """
-    syn = Path(root) / setting / folder / "syn"
-    if not syn.is_dir():
-        parent = Path(root) / setting
-        have = sorted(p.name for p in parent.iterdir() if p.is_dir()) if parent.is_dir() else []
-        hint = f" (found in {parent}: {', '.join(have)})" if have else ""
-        raise DataError(f"{syn}: no such OxIOD folder; expected <root>/<setting>/<dataN>/syn{hint}")
-    found = [(int(m.group(1)), p) for p in syn.iterdir() if (m := _IMU_RE.fullmatch(p.name))]
-    if not found:
-        raise DataError(f"{syn}: no imuK.csv files (K = 1, 2, ...) in this OxIOD folder")
-    return [p for _, p in sorted(found)]

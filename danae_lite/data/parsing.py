@@ -1,4 +1,4 @@
-"""Helpers shared by the dataset loaders: strict numeric CSV parsing and meta-aware slicing.
+"""Helpers shared by the dataset loaders: reading a file and strict numeric CSV parsing.
 
 Parsing is fast (pandas' C parser) and strict: nothing is dropped or padded. When the fast
 parse fails or yields a non-finite value, the offending line and column are located and
@@ -8,7 +8,6 @@ number, the 1-based column (and its name when known) and what was expected.
 from __future__ import annotations
 
 import io
-import json
 import re
 from collections.abc import Sequence
 from pathlib import Path
@@ -31,38 +30,17 @@ def read_bytes(path: Path, what: str = "file") -> bytes:
     return path.read_bytes()
 
 
-def read_json(path: Path, what: str = "file") -> object:
-    """Parse a JSON file; a missing file or invalid JSON raises DataError naming the file."""
-    if not path.is_file():
-        raise DataError(f"{path}: {what} not found")
-    try:
-        return json.loads(path.read_text(encoding="utf-8"))
-    except (UnicodeDecodeError, json.JSONDecodeError) as exc:
-        raise DataError(f"{path}: not valid JSON ({exc})") from exc
-
-
 def line_spans(raw: bytes) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """Start and end byte offsets of every line (a final newline does not start a new line)."""
     buf = np.frombuffer(raw, dtype=np.uint8)
-    if buf.size == 0:
-        return np.zeros(0, dtype=np.int64), np.zeros(0, dtype=np.int64)
     newlines = np.flatnonzero(buf == 10)
-    ends = newlines if (buf.size and buf[-1] == 10) else np.append(newlines, buf.size)
+    ends = newlines if raw.endswith(b"\n") or not raw else np.append(newlines, buf.size)
     starts = np.concatenate([[0], newlines + 1])[: ends.size]
     return starts.astype(np.int64), ends.astype(np.int64)
 
 
 def _line(raw: bytes, starts: NDArray[np.int64], ends: NDArray[np.int64], i: int) -> str:
     return raw[starts[i]:ends[i]].decode("utf-8", errors="replace").rstrip("\r")
-
-
-def _describe(cell: str) -> str:
-    return "an empty cell" if not cell else repr(cell)
-
-
-def _where(path: Path, line: int, col: int, names: Sequence[str] | None) -> str:
-    label = f" ({names[col]})" if names is not None and col < len(names) else ""
-    return f"{path}: line {line}, column {col + 1}{label}"
 
 
 def parse_numeric(path: Path, raw: bytes, ncols: int, *, skip: int = 0, usecols: Sequence[int] | None = None,
@@ -99,30 +77,19 @@ def parse_numeric(path: Path, raw: bytes, ncols: int, *, skip: int = 0, usecols:
     bad = np.flatnonzero(counts != ncols)
     if bad.size:
         i = int(bad[0])
-        text = _line(raw, starts, ends, i)
-        if not text.strip():
+        if not _line(raw, starts, ends, i).strip():
             raise DataError(f"{path}: line {skip + i + 1} is empty; expected {ncols} comma-separated numbers")
         raise DataError(f"{path}: line {skip + i + 1} has {counts[i]} comma-separated columns, expected {ncols}")
     n = starts.size
-    values = None
-    if n:
-        try:
-            frame = pd.read_csv(io.BytesIO(raw), header=None, skiprows=skip, usecols=cols, dtype=np.float64,
-                                skip_blank_lines=False, engine="c")
-            values = frame[cols].to_numpy(dtype=np.float64)
-        except (ValueError, pd.errors.ParserError):
-            values = None
-    else:
-        values = np.empty((0, len(cols)))
-    if values is not None and values.shape == (n, len(cols)):
-        finite = np.isfinite(values)
-        if finite.all():
-            return values
-        r, j = (int(v) for v in np.argwhere(~finite)[0])
-        cell = _line(raw, starts, ends, r).split(",")[cols[j]].strip()
-        raise DataError(f"{_where(path, skip + r + 1, cols[j], names)}: expected a finite number, "
-                        f"got {_describe(cell)}")
-    # The fast parse failed: convert cell by cell, stopping at the first bad value.
+    try:
+        frame = pd.read_csv(io.BytesIO(raw), header=None, skiprows=skip, usecols=cols, dtype=np.float64,
+                            skip_blank_lines=False, engine="c")
+        values = frame[cols].to_numpy(dtype=np.float64)
+    except ValueError:  # pandas' ParserError and EmptyDataError are ValueErrors
+        values = None
+    if values is not None and values.shape == (n, len(cols)) and np.isfinite(values).all():
+        return values
+    # The fast parse failed or met a non-finite value: convert cell by cell, stopping at the first bad one.
     out = np.empty((n, len(cols)))
     for r in range(n):
         fields = _line(raw, starts, ends, r).split(",")
@@ -130,6 +97,8 @@ def parse_numeric(path: Path, raw: bytes, ncols: int, *, skip: int = 0, usecols:
             cell = fields[c].strip()
             out[r, j] = float(cell) if _DECIMAL.fullmatch(cell) else np.nan
             if not np.isfinite(out[r, j]):
-                raise DataError(f"{_where(path, skip + r + 1, c, names)}: expected a finite number, "
-                                f"got {_describe(cell)}")
+                label = f" ({names[c]})" if names is not None and c < len(names) else ""
+                got = repr(cell) if cell else "an empty cell"
+                raise DataError(f"{path}: line {skip + r + 1}, column {c + 1}{label}: expected a finite number, "
+                                f"got {got}")
     return out

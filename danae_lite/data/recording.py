@@ -30,7 +30,7 @@ scipy's ``Rotation`` in intrinsic ZYX order (:func:`danae_lite.angles.quat_to_eu
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from functools import cached_property
 from typing import Any
 
@@ -75,18 +75,12 @@ class Recording:
                 raise DataError(f"{where}: {key}[{r}, {c}] is {arr[r, c]}, expected a finite number")
             arr.setflags(write=False)
             object.__setattr__(self, key, arr)
-        norms = np.linalg.norm(self.quat, axis=1)
-        if (norms < 1e-9).any():
-            r = int(np.argmax(norms < 1e-9))
-            raise DataError(f"{where}: quat row {r} is zero, expected a non-zero quaternion")
+        zero = np.flatnonzero(np.linalg.norm(self.quat, axis=1) < 1e-9)
+        if zero.size:
+            raise DataError(f"{where}: quat row {zero[0]} is zero, expected a non-zero quaternion")
 
     def __len__(self) -> int:
         return int(self.gyro.shape[0])
-
-    @property
-    def n(self) -> int:
-        """Number of samples."""
-        return len(self)
 
     @property
     def dt(self) -> float:
@@ -117,36 +111,16 @@ class Recording:
         other entries are copied unchanged. ``meta["offset"]`` accumulates the start index
         relative to the original recording.
         """
-        s = slice(start, stop)
-        idx = range(len(self))[s]
-        if len(idx) == 0:
-            raise DataError(f"recording {self.name!r}: slice {start}:{stop} is empty (N={len(self)})")
         n = len(self)
-        meta = {
-            k: (v[s] if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == n else v)
-            for k, v in self.meta.items()
-        }
+        s = slice(start, stop)
+        idx = range(n)[s]
+        if not idx:
+            raise DataError(f"recording {self.name!r}: slice {start}:{stop} is empty (N={n})")
+        meta = {k: v[s] if isinstance(v, np.ndarray) and v.ndim >= 1 and v.shape[0] == n else v
+                for k, v in self.meta.items()}
         meta["offset"] = int(self.meta.get("offset", 0)) + idx.start
-        return Recording(
-            name=name or f"{self.name}[{idx.start}:{idx.stop}]",
-            source=self.source,
-            fs=self.fs,
-            gyro=self.gyro[s],
-            acc=self.acc[s],
-            mag=self.mag[s],
-            quat=self.quat[s],
-            meta=meta,
-        )
-
-    def summary(self) -> dict[str, Any]:
-        """A one-line description: name, source, samples, rate and duration."""
-        return {
-            "name": self.name,
-            "source": self.source,
-            "samples": len(self),
-            "fs [Hz]": self.fs,
-            "duration [s]": round(self.duration, 2),
-        }
+        return replace(self, name=name or f"{self.name}[{idx.start}:{idx.stop}]", gyro=self.gyro[s], acc=self.acc[s],
+                       mag=self.mag[s], quat=self.quat[s], meta=meta)
 
     def __repr__(self) -> str:
         return f"Recording(name={self.name!r}, source={self.source!r}, n={len(self)}, fs={self.fs:g} Hz)"

@@ -56,24 +56,17 @@ AUTHORS_UCS_STD = 0.5
 SCENARIOS: dict[str, tuple[float, float]] = {"handheld": (100.0, 180.0), "underwater": (10.0, 1950.0)}
 """Scenario name -> (default sample rate [Hz], default duration [s])."""
 
-SOURCE_FIELDS: dict[str, tuple[str, ...]] = {
-    "gyro_noise": ("gyro_noise",),
+ERROR_SOURCES: tuple[str, ...] = (
+    "gyro_noise", "gyro_bias", "gyro_bias_walk", "acc_noise", "acc_bias", "motion", "mag_noise", "hard_iron",
+    "soft_iron", "mag_disturbance", "misalignment", "mag_hold", "authors_ucs_noise")
+"""Names accepted by :meth:`SensorErrors.only`; each source is named after its main :class:`SensorErrors` field."""
+SOURCE_FIELDS: dict[str, tuple[str, ...]] = {source: (source,) for source in ERROR_SOURCES} | {
     "gyro_bias": ("gyro_bias", "gyro_bias_fixed"),
-    "gyro_bias_walk": ("gyro_bias_walk",),
-    "acc_noise": ("acc_noise",),
     "acc_bias": ("acc_bias", "acc_bias_fixed"),
-    "motion": ("motion",),
-    "mag_noise": ("mag_noise",),
-    "hard_iron": ("hard_iron",),
-    "soft_iron": ("soft_iron",),
     "mag_disturbance": ("mag_disturbance", "mag_disturbance_rate", "mag_disturbance_duration"),
     "misalignment": ("misalignment", "misalignment_axis"),
-    "mag_hold": ("mag_hold",),
-    "authors_ucs_noise": ("authors_ucs_noise",),
 }
-"""Each error source (a group of :class:`SensorErrors` fields) by name."""
-ERROR_SOURCES: tuple[str, ...] = tuple(SOURCE_FIELDS)
-"""Names accepted by :meth:`SensorErrors.only` and :meth:`SensorErrors.without`."""
+"""Each error source by name: its main field and the fields that go with it."""
 
 _STREAMS = ("trajectory", "gyro_noise", "gyro_bias", "gyro_bias_walk", "acc_noise", "acc_bias",
             "mag_noise", "mag_disturbance", "misalignment", "authors_gyro", "authors_acc")
@@ -184,14 +177,13 @@ class SensorErrors:
         (steel furniture, doors); misalignment 0.01 rad; mag_hold 1 (set e.g. 2-4 to mimic
         a magnetometer slower than the IMU).
         """
-        values: dict[str, Any] = dict(
+        return replace(cls(
             gyro_noise=0.003, gyro_bias=0.01, gyro_bias_walk=2e-4, acc_noise=0.002, acc_bias=0.01,
             motion=1.0, mag_noise=0.4, hard_iron=(4.0, -3.0, 6.0),
             soft_iron=((1.02, 0.01, -0.01), (0.01, 0.98, 0.02), (-0.01, 0.02, 1.01)),
             mag_disturbance=10.0, mag_disturbance_rate=1 / 40, mag_disturbance_duration=3.0,
             misalignment=0.01,
-        )
-        return cls(**{**values, **overrides})
+        ), **overrides)
 
     @classmethod
     def underwater(cls, **overrides: Any) -> "SensorErrors":
@@ -203,35 +195,25 @@ class SensorErrors:
         (thruster currents); misalignment 0.005 rad. The authors' UCS noise is off; use
         ``SensorErrors.underwater(authors_ucs_noise=True)`` to reproduce the paper's inputs.
         """
-        values: dict[str, Any] = dict(
+        return replace(cls(
             gyro_noise=3e-4, gyro_bias=1e-3, gyro_bias_walk=1e-5, acc_noise=2e-4, acc_bias=2e-3,
             motion=1.0, mag_noise=0.05, hard_iron=(3.0, -2.0, 5.0),
             soft_iron=((1.01, 0.005, 0.0), (0.005, 0.99, 0.01), (0.0, 0.01, 1.0)),
             mag_disturbance=4.0, mag_disturbance_rate=1 / 150, mag_disturbance_duration=10.0,
             misalignment=0.005,
-        )
-        return cls(**{**values, **overrides})
+        ), **overrides)
 
     def only(self, *sources: str) -> "SensorErrors":
         """A copy with only the named sources (see :data:`ERROR_SOURCES`) kept, all others off."""
-        keep = {f for s in sources for f in _fields_of(s)}
-        return replace(SensorErrors(), **{f: getattr(self, f) for f in keep})
-
-    def without(self, *sources: str) -> "SensorErrors":
-        """A copy with the named sources switched off."""
-        off = SensorErrors()
-        return replace(self, **{f: getattr(off, f) for s in sources for f in _fields_of(s)})
+        unknown = [s for s in sources if s not in SOURCE_FIELDS]
+        if unknown:
+            raise ValueError(f"unknown error source {unknown[0]!r}; valid: {', '.join(ERROR_SOURCES)}")
+        return replace(SensorErrors(), **{f: getattr(self, f) for s in sources for f in SOURCE_FIELDS[s]})
 
     def active(self) -> tuple[str, ...]:
         """Names of the sources that are switched on."""
         off = SensorErrors()
         return tuple(s for s, fs in SOURCE_FIELDS.items() if any(getattr(self, f) != getattr(off, f) for f in fs))
-
-
-def _fields_of(source: str) -> tuple[str, ...]:
-    if source not in SOURCE_FIELDS:
-        raise ValueError(f"unknown error source {source!r}; valid: {', '.join(ERROR_SOURCES)}")
-    return SOURCE_FIELDS[source]
 
 
 def euler_rates_to_body(euler: Array, euler_rate: Array) -> Array:
@@ -309,11 +291,11 @@ def _trajectory(scenario: str, t: Array, rng: np.random.Generator) -> tuple[Arra
         }
         path, path_rate = _turns(rng, t, gap=(8.0, 25.0), turn_rate=(0.3, 0.6), angle=(np.pi / 4, np.pi),
                                   alternate=False)
-        bounce = _tone(rng, t, rng.uniform(0.1, 0.2) * G, f_step)[0] + _tone(rng, t, 0.03 * G, 2 * f_step)[0]
+        # vertical: the walk's bounce at the step frequency and its second harmonic
+        vertical = _tone(rng, t, rng.uniform(0.1, 0.2) * G, f_step)[0] + _tone(rng, t, 0.03 * G, 2 * f_step)[0]
         surge = _tone(rng, t, 0.06 * G, f_step)[0]
         sway = _tone(rng, t, 0.04 * G, f_step / 2)[0] + speed * path_rate  # lateral + centripetal
-        vertical = bounce
-    elif scenario == "underwater":
+    else:  # "underwater" (simulate checks the name)
         speed = rng.uniform(0.4, 0.7)  # surge speed [m/s]
         parts = {
             "roll": [(rng.uniform(-0.03, 0.03) + zero, zero), _sines(rng, t, 0.08, 0.002, 0.03)],
@@ -325,8 +307,6 @@ def _trajectory(scenario: str, t: Array, rng: np.random.Generator) -> tuple[Arra
         speed_change, surge = _sines(rng, t, 0.1, 0.003, 0.03)  # speed variation [m/s] and its derivative
         sway = (speed + speed_change) * path_rate
         vertical = _sines(rng, t, 0.03, 0.005, 0.05)[0]
-    else:
-        raise ValueError(f"unknown scenario {scenario!r}; valid: {', '.join(SCENARIOS)}")
     parts["yaw"].append((path, path_rate))
     euler = np.stack([sum(v for v, _ in parts[k]) for k in ("roll", "pitch", "yaw")], axis=1)
     rate = np.stack([sum(d for _, d in parts[k]) for k in ("roll", "pitch", "yaw")], axis=1)
@@ -395,21 +375,24 @@ def simulate(scenario: str = "handheld", *, duration: float | None = None, seed:
     true_acc = to_body(linear / G + np.array([0.0, 0.0, 1.0]))
     true_mag = to_body(np.broadcast_to(MAG_REF, (n, 3)))
 
-    rotvec = _misalignment_rotvec(errors, rng["misalignment"])
+    axis = errors.misalignment_axis  # None: a random unit axis
+    if axis is None:
+        axis = rng["misalignment"].standard_normal(3)
+    rotvec = errors.misalignment * np.asarray(axis, dtype=float) / np.linalg.norm(axis)
     mis = _rotvec_matrix(rotvec)  # sensor -> body; sensors read mis.T @ v_body
 
     gyro_bias = _constant(rng["gyro_bias"], errors.gyro_bias, errors.gyro_bias_fixed) + np.zeros((n, 3))
     if errors.gyro_bias_walk > 0:
         steps = errors.gyro_bias_walk * np.sqrt(dt) * rng["gyro_bias_walk"].standard_normal((n - 1, 3))
         gyro_bias[1:] += np.cumsum(steps, axis=0)
-    gyro = true_gyro @ mis + gyro_bias + errors.gyro_noise * _normal(rng["gyro_noise"], errors.gyro_noise, n)
+    gyro = true_gyro @ mis + gyro_bias + _noise(rng["gyro_noise"], errors.gyro_noise, n)
 
     acc_bias = _constant(rng["acc_bias"], errors.acc_bias, errors.acc_bias_fixed)
-    acc = true_acc @ mis + acc_bias + errors.acc_noise * _normal(rng["acc_noise"], errors.acc_noise, n)
+    acc = true_acc @ mis + acc_bias + _noise(rng["acc_noise"], errors.acc_noise, n)
 
     disturbance = _disturbances(rng["mag_disturbance"], t, errors)
     mag = (true_mag @ mis + disturbance) @ np.asarray(errors.soft_iron).T + np.asarray(errors.hard_iron)
-    mag = mag + errors.mag_noise * _normal(rng["mag_noise"], errors.mag_noise, n)
+    mag = mag + _noise(rng["mag_noise"], errors.mag_noise, n)
 
     if errors.authors_ucs_noise:
         gyro = gyro + AUTHORS_UCS_STD * rng["authors_gyro"].standard_normal((n, 3))
@@ -444,18 +427,9 @@ def _rate_and_length(scenario: str, fs: float | None, duration: float | None) ->
     return fs, n
 
 
-def _misalignment_rotvec(errors: SensorErrors, rng: np.random.Generator) -> Array:
-    """The sensor's misalignment as a rotation vector [rad]: ``errors.misalignment`` about
-    ``errors.misalignment_axis``, or about a random axis drawn from ``rng`` when that is None."""
-    axis = errors.misalignment_axis
-    if axis is None:
-        axis = rng.standard_normal(3)
-    return errors.misalignment * np.asarray(axis, dtype=float) / np.linalg.norm(axis)
-
-
-def _normal(rng: np.random.Generator, sigma: float, n: int) -> Array:
-    """Standard normal (N, 3) draws, or zeros when the source is off (no draws are made)."""
-    return rng.standard_normal((n, 3)) if sigma > 0 else np.zeros((n, 3))
+def _noise(rng: np.random.Generator, sigma: float, n: int) -> Array:
+    """White noise (N, 3) of std ``sigma``, or zeros when the source is off (no draws are made)."""
+    return sigma * rng.standard_normal((n, 3)) if sigma > 0 else np.zeros((n, 3))
 
 
 def _rotvec_matrix(rotvec: Array) -> Array:

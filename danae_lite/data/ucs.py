@@ -129,16 +129,17 @@ def _acc_sign(path: Path, acc: np.ndarray, quat: np.ndarray) -> tuple[int, float
     return (1 if agreement > 0 else -1), abs(agreement)
 
 
-def _integer_stamps(raw: bytes, col: int, n: int) -> np.ndarray | None:
-    """The time column as int64 when every value is an integer (ns stamps exceed float64's 2**53)."""
+def _stamps(raw: bytes, col: int, parsed: np.ndarray) -> np.ndarray:
+    """The time column as int64 when every value is an integer (ns stamps exceed float64's 2**53),
+    else ``parsed`` (the column as float64)."""
     import pandas as pd  # here, not at the top: the command line's --help loads no pandas
 
     try:
         frame = pd.read_csv(io.BytesIO(raw), usecols=[col], dtype=np.int64, engine="c")
-    except (ValueError, OverflowError, pd.errors.ParserError):
-        return None
+    except (ValueError, OverflowError):  # pandas' ParserError is a ValueError
+        return parsed
     values = frame.iloc[:, 0].to_numpy()
-    return values if values.shape == (n,) else None
+    return values if values.shape == parsed.shape else parsed
 
 
 def load_recording(path: str | Path, *, name: str | None = None, units: Mapping[str, str] | None = None,
@@ -211,8 +212,8 @@ def _columns(path: Path, raw: bytes, min_samples: int) -> tuple[dict[str, list[i
     if missing:
         raise DataError(f"{path}: header row lacks column(s) {', '.join(missing)}; expected the "
                         f"rostopic export header ({','.join(HEADER)})")
-    wanted = {k: [index[_key(c)] for c in cols] for k, cols in REQUIRED.items()}
-    wanted |= {k: [index[_key(c)] for c in cols] for k, cols in OPTIONAL.items() if all(_key(c) in index for c in cols)}
+    wanted = {k: [index[_key(c)] for c in cols] for k, cols in (REQUIRED | OPTIONAL).items()
+              if all(_key(c) in index for c in cols)}
     n = starts.size - 1
     if n < min_samples:
         raise DataError(f"{path}: {n} data rows; at least {min_samples} are needed (one DANAE window is 20 samples)")
@@ -226,10 +227,7 @@ def _timeline(path: Path, raw: bytes, wanted: dict[str, list[int]], get: dict[st
               time_unit: str) -> tuple[np.ndarray, np.ndarray, float]:
     """The raw stamps, the time [s from the first row] and the rate [Hz] from the median step;
     DataError for time that does not increase or a rate outside 0.5-1000 Hz."""
-    n = len(get["time"])
-    stamps = _integer_stamps(raw, wanted["time"][0], n)
-    if stamps is None:
-        stamps = get["time"][:, 0]
+    stamps = _stamps(raw, wanted["time"][0], get["time"][:, 0])
     t = (stamps - stamps[0]) * UNITS["time"][time_unit]
     steps = np.diff(t)
     if (steps <= 0).any():

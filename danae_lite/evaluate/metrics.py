@@ -20,7 +20,7 @@ Table 1 gives per-angle RMSE reductions of 65.4% (roll), 67.3% (pitch) and 45.0%
 whose mean is 59.25% (59.2% from the rounded values; roll and pitch alone: 66.4%); 63%
 does not follow from the table. The UCS claim (55%) matches Table 2 (56.8% and 53.9%,
 mean 55.4%). See
-:func:`rmse_reduction` and :func:`paper_rmse_reduction`.
+:func:`paper_rmse_reduction`.
 """
 from __future__ import annotations
 
@@ -31,22 +31,6 @@ import pandas as pd
 from numpy.typing import ArrayLike, NDArray
 
 from ..angles import ANGLES, angle_diff, wrap
-
-__all__ = [
-    "METRICS",
-    "PAPER",
-    "PAPER_CLAIMED_RMSE_REDUCTION",
-    "best_constant_offset",
-    "compare_with_paper",
-    "errors",
-    "max_dev",
-    "mean_dev",
-    "metric_table",
-    "paper_rmse_reduction",
-    "paper_table",
-    "rmse",
-    "rmse_reduction",
-]
 
 METRICS: tuple[str, str, str] = ("mean_dev", "max_dev", "rmse")
 """Row names of every metric table, in the paper's order."""
@@ -97,11 +81,9 @@ def errors(est: ArrayLike, truth: ArrayLike, wrapped: bool = True) -> NDArray[np
     wrapped : bool
         Wrap to [-pi, pi) (default); ``False`` gives the raw difference, as the authors did.
     """
-    e = np.asarray(est, dtype=float)
-    t = np.asarray(truth, dtype=float)
-    if e.shape != t.shape:
-        raise ValueError(f"est has shape {e.shape} but truth has shape {t.shape}")
-    return angle_diff(t, e, wrapped=wrapped)
+    if np.shape(est) != np.shape(truth):
+        raise ValueError(f"est has shape {np.shape(est)} but truth has shape {np.shape(truth)}")
+    return angle_diff(truth, est, wrapped=wrapped)
 
 
 def mean_dev(err: ArrayLike) -> NDArray[np.float64] | float:
@@ -200,11 +182,8 @@ def metric_table(
         e = e[m]
     if e.shape[0] == 0:
         raise ValueError("no samples to evaluate (empty input or all-False mask)")
-    data = np.vstack([mean_dev(e), max_dev(e), rmse(e)])
-    out = pd.DataFrame(data, index=list(METRICS), columns=names)
-    out.columns.name = "angle"
-    out.index.name = "metric [rad]"
-    return out
+    out = pd.DataFrame([mean_dev(e), max_dev(e), rmse(e)], index=list(METRICS), columns=names)
+    return out.rename_axis(index="metric [rad]", columns="angle")
 
 
 def reduction_pct(value: ArrayLike, reference: ArrayLike) -> NDArray[np.float64] | float:
@@ -234,18 +213,6 @@ def spread(values: ArrayLike) -> tuple[float, float]:
     return float(v.mean()), (float(v.std(ddof=1)) if v.size > 1 else float("nan"))
 
 
-def rmse_reduction(kf_table: pd.DataFrame, other_table: pd.DataFrame) -> pd.Series:
-    """RMSE reduction of a method over the KF per angle [%] (:func:`reduction_pct` of the
-    ``rmse`` rows).
-
-    Both tables are :func:`metric_table`-style (row ``rmse``); angles missing in either
-    table, or NaN, give NaN. Positive = the other method is better.
-    """
-    red = reduction_pct(other_table.loc["rmse"].astype(float), kf_table.loc["rmse"].astype(float))
-    red.name = "RMSE reduction [%]"
-    return red
-
-
 def paper_table(dataset: str, method: str) -> pd.DataFrame:
     """Table 1 (``dataset="oxiod"``) or 2 (``"ucs"``) for ``method`` "kf" or "danae" [rad].
 
@@ -257,21 +224,19 @@ def paper_table(dataset: str, method: str) -> pd.DataFrame:
     meth = method.lower()
     if meth not in PAPER[key]:
         raise ValueError(f"unknown method {method!r}; valid: {', '.join(PAPER[key])}")
-    rows = PAPER[key][meth]
-    data = [[np.nan if rows[m][a] is None else rows[m][a] for a in ANGLES] for m in METRICS]
-    out = pd.DataFrame(data, index=list(METRICS), columns=list(ANGLES), dtype=float)
-    out.columns.name = "angle"
-    out.index.name = "metric [rad]"
-    return out
+    out = pd.DataFrame(PAPER[key][meth], dtype=float).T.loc[list(METRICS), list(ANGLES)]
+    return out.rename_axis(index="metric [rad]", columns="angle")
 
 
 def paper_rmse_reduction(dataset: str) -> pd.Series:
-    """Per-angle RMSE reduction of DANAE over the KF implied by the paper's table [%].
+    """Per-angle RMSE reduction of DANAE over the KF implied by the paper's table [%]
+    (:func:`reduction_pct` of the ``rmse`` rows; NaN where the paper gives no value).
 
     OxIOD: 65.4, 67.3, 45.0 (mean 59.25, not the 63 claimed in the text);
     UCS: 56.8, 53.9 (mean 55.4; yaw NaN).
     """
-    return rmse_reduction(paper_table(dataset, "kf"), paper_table(dataset, "danae"))
+    red = reduction_pct(paper_table(dataset, "danae").loc["rmse"], paper_table(dataset, "kf").loc["rmse"])
+    return red.rename("RMSE reduction [%]")
 
 
 def compare_with_paper(ours: pd.DataFrame, dataset: str, method: str) -> pd.DataFrame:
@@ -294,11 +259,7 @@ def compare_with_paper(ours: pd.DataFrame, dataset: str, method: str) -> pd.Data
     angles = [a for a in ours.columns if a in paper.columns]
     if not angles:
         raise ValueError(f"no common angle columns between ours {list(ours.columns)} and the paper")
-    metrics = [m for m in METRICS if m in ours.index]
-    cols = pd.MultiIndex.from_product([angles, ["ours", "paper"]], names=["angle", "source"])
-    out = pd.DataFrame(index=metrics, columns=cols, dtype=float)
-    for a in angles:
-        out[(a, "ours")] = ours.loc[metrics, a].astype(float)
-        out[(a, "paper")] = paper.loc[metrics, a]
-    out.index.name = "metric [rad]"
-    return out
+    rows = [m for m in METRICS if m in ours.index]
+    tables = {"ours": ours.loc[rows, angles].astype(float), "paper": paper.loc[rows, angles]}
+    out = pd.DataFrame({(a, source): t[a] for a in angles for source, t in tables.items()})
+    return out.rename_axis(index="metric [rad]", columns=["angle", "source"])

@@ -40,8 +40,7 @@ def seed_metrics(estimates: Sequence[Array], truth: Array, angle: str,
     angle : the angle's name ("roll", "pitch", "yaw").
     samples : (N,) bool, the samples scored; default all.
     """
-    sel = slice(None) if samples is None else samples
-    return [metrics.metric_table(e[sel], truth[sel], angles=(angle,))[angle]
+    return [metrics.metric_table(e, truth, angles=(angle,), mask=samples)[angle]
             for e in estimates if not np.isnan(e).all()]
 
 
@@ -80,12 +79,8 @@ def plain(obj: Any) -> Any:
         return {str(k): plain(v) for k, v in obj.items()}
     if isinstance(obj, (list, tuple)):
         return [plain(v) for v in obj]
-    if isinstance(obj, np.ndarray):
+    if isinstance(obj, (np.ndarray, np.generic)):
         return plain(obj.tolist())
-    if isinstance(obj, (np.bool_, bool)):
-        return bool(obj)
-    if isinstance(obj, (np.integer,)):
-        return int(obj)
-    if isinstance(obj, (np.floating, float)):
-        return None if not np.isfinite(obj) else float(obj)
+    if isinstance(obj, float):
+        return float(obj) if np.isfinite(obj) else None
     return obj

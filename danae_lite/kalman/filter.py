@@ -15,7 +15,7 @@ Speed
 -----
 ``P``/``K`` do not depend on the data, so the gain sequence is computed first and stops as
 soon as it has converged to machine precision (about 170 steps for the paper's identities
-at dt = 0.1 s, about 1600 at dt = 0.01 s, more for a small ``Q``; cached per setting);
+at dt = 0.1 s, about 1600 at dt = 0.01 s, more for a small ``Q``; its blocks are remembered);
 the data loop (:func:`recursion`) then runs with plain ``math`` scalars, using ``K_t``
 during that transient and the converged gain afterwards. When ``P0``, ``Q`` are
 block-diagonal in the (angle, bias) pairs and ``R`` is diagonal (the default), the gains are
@@ -35,13 +35,13 @@ from typing import TYPE_CHECKING, Any, Literal
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from .gains import GainSequence, gain_sequence, use_block_path
+from .gains import GainSequence, gain_sequence
 from .model import KFConfig, accel_tilt, check_dt, unit_rows
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..data.recording import Recording
 
-__all__ = ["PI", "TRIG_MATH", "TRIG_NUMPY", "TWO_PI", "KFResult", "KFStep", "initial_tilt", "kalman_filter", "kf_step",
+__all__ = ["PI", "TRIG_MATH", "TWO_PI", "KFResult", "KFStep", "initial_tilt", "kalman_filter", "kf_step",
            "measurement_rows", "recursion", "run_kf", "sensor_arrays"]
 
 PI = math.pi
@@ -71,33 +71,23 @@ class KFStep:
     """``(I - K C) P'`` (eq 7)."""
 
 
-def kf_step(
-    x: ArrayLike,
-    P: ArrayLike,
-    u: ArrayLike,
-    y: ArrayLike,
-    A: ArrayLike,
-    B: ArrayLike,
-    C: ArrayLike,
-    Q: ArrayLike,
-    R: ArrayLike,
-) -> KFStep:
+def kf_step(x: ArrayLike, P: ArrayLike, u: ArrayLike, y: ArrayLike,
+            A: ArrayLike, B: ArrayLike, C: ArrayLike, Q: ArrayLike, R: ArrayLike) -> KFStep:
     """One textbook step of the linear KF, eqs (3)-(7), with every intermediate kept.
 
     Works for any dimensions: ``x`` (n,), ``P``/``Q`` (n, n), ``u`` (m,), ``B`` (n, m),
     ``y`` (k,), ``C`` (k, n), ``R`` (k, k). Meant for teaching and checking by hand;
     :func:`kalman_filter` is the fast implementation of the same equations.
     """
-    x, P, u, y = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (x, P, u, y))
-    A, B, C, Q, R = (np.atleast_2d(np.asarray(v, dtype=float)) for v in (A, B, C, Q, R))
-    P = np.atleast_2d(P)
-    x_prior = A @ x + B @ u
-    P_prior = A @ P @ A.T + Q
+    x, u, y = (np.atleast_1d(np.asarray(v, dtype=float)) for v in (x, u, y))
+    P, A, B, C, Q, R = (np.atleast_2d(np.asarray(v, dtype=float)) for v in (P, A, B, C, Q, R))
+    x_prior = A @ x + B @ u  # eq (3)
+    P_prior = A @ P @ A.T + Q  # eq (4)
     S = C @ P_prior @ C.T + R
-    K = P_prior @ C.T @ np.linalg.inv(S)
+    K = P_prior @ C.T @ np.linalg.inv(S)  # eq (5)
     innovation = y - C @ x_prior
-    x_new = x_prior + K @ innovation
-    P_new = (np.eye(len(x)) - K @ C) @ P_prior
+    x_new = x_prior + K @ innovation  # eq (6)
+    P_new = (np.eye(len(x)) - K @ C) @ P_prior  # eq (7)
     return KFStep(x_prior=x_prior, P_prior=P_prior, S=S, K=K, innovation=innovation, x=x_new, P=P_new)
 
 
@@ -150,10 +140,7 @@ class KFResult:
     @property
     def state(self) -> NDArray[np.float64]:
         """Full state ``(N, 6)`` = ``[phi, b_phi, theta, b_theta, psi, b_psi]``."""
-        out = np.empty((len(self.euler), 6))
-        out[:, 0::2] = self.euler
-        out[:, 1::2] = self.bias
-        return out
+        return np.stack((self.euler, self.bias), axis=2).reshape(len(self.euler), 6)  # angle, bias per axis
 
     def __len__(self) -> int:
         return int(self.euler.shape[0])
@@ -161,22 +148,14 @@ class KFResult:
 
 TRIG_MATH = (math.sin, math.cos, math.atan2)
 """``sin``, ``cos``, ``atan2`` for one setting of plain floats (:func:`kalman_filter`)."""
-TRIG_NUMPY = (np.sin, np.cos, np.arctan2)
-"""The same for a batch of settings held in NumPy vectors (:mod:`danae_lite.kalman.grid`)."""
 
 
-def recursion(
-    rows: Iterable[tuple[float, ...]],
-    gains: Iterable[tuple[Any, ...]],
-    start: Sequence[Any],
-    dt: float,
-    wrap_yaw: bool = False,
-    trig: tuple[Callable[..., Any], ...] = TRIG_MATH,
-) -> Iterator[tuple[Any, ...]]:
+def recursion(rows: Iterable[tuple[float, ...]], gains: Iterable[tuple[Any, ...]], start: Sequence[Any], dt: float,
+              wrap_yaw: bool = False, trig: tuple[Callable[..., Any], ...] = TRIG_MATH) -> Iterator[tuple[Any, ...]]:
     """Eqs (3), (6) over the samples, with the gains of eqs (4)-(5) computed beforehand.
 
     One state per setting: floats with :data:`TRIG_MATH` (one setting), or NumPy vectors of
-    ``K`` settings with :data:`TRIG_NUMPY` (a grid); the same lines run both.
+    ``K`` settings with :data:`danae_lite.kalman.grid.TRIG_NUMPY` (a grid); the same lines run both.
 
     ``rows`` yields ``(p, q, r, roll_acc, pitch_acc, mx, my, mz)`` per sample (rates [rad/s],
     accelerometer tilt [rad], magnetometer of unit norm); ``gains`` the step's 6x3 gain,
@@ -225,10 +204,9 @@ def recursion(
 
 def _step(dt: float | None, cfg: KFConfig) -> float:
     """The step [s]: ``dt``, else ``cfg.dt``; ValueError when neither is given or they disagree."""
-    if dt is None:
-        if cfg.dt is None:
-            raise ValueError("dt is not given and config.dt is None: pass the step in seconds")
-        dt = cfg.dt
+    if dt is None and cfg.dt is None:
+        raise ValueError("dt is not given and config.dt is None: pass the step in seconds")
+    dt = cfg.dt if dt is None else dt
     check_dt(dt)
     dt = float(dt)
     if cfg.dt is not None and cfg.dt != dt:
@@ -246,7 +224,8 @@ def sensor_arrays(**named: ArrayLike) -> dict[str, NDArray[np.float64]]:
         if a.ndim != 2 or a.shape[1] != 3:
             raise ValueError(f"{name} must have shape (N, 3), got {a.shape}")
         if not np.isfinite(a).all():
-            raise ValueError(f"{name} contains non-finite values (first at row {int(np.argmax(~np.isfinite(a).all(1)))})")
+            row = int(np.argmax(~np.isfinite(a).all(1)))
+            raise ValueError(f"{name} contains non-finite values (first at row {row})")
         n = a.shape[0] if n is None else n
         if a.shape[0] != n:
             raise ValueError(f"{name} has {a.shape[0]} rows, gyro has {n}")
@@ -262,10 +241,8 @@ def measurement_rows(arrays: dict[str, NDArray[np.float64]]
     :func:`recursion` reads: ``(p, q, r, roll_acc, pitch_acc, mx, my, mz)`` per sample as
     floats (the magnetometer scaled to unit norm)."""
     tilt = accel_tilt(arrays["acc"])
-    mu = unit_rows(arrays["mag"], "mag")
-    g = arrays["gyro"]
-    cols = (g[:, 0], g[:, 1], g[:, 2], tilt[:, 0], tilt[:, 1], mu[:, 0], mu[:, 1], mu[:, 2])
-    return tilt, zip(*(c.tolist() for c in cols))
+    columns = np.column_stack((arrays["gyro"], tilt, unit_rows(arrays["mag"], "mag"))).T
+    return tilt, zip(*columns.tolist())
 
 
 def initial_tilt(init_euler: ArrayLike | None, cfg: KFConfig) -> tuple[float, float]:
@@ -286,17 +263,9 @@ def _step_gains(seq: GainSequence, n: int) -> Iterator[tuple[float, ...]]:
     return chain(map(tuple, picked.tolist()), repeat(tuple(picked[-1].tolist())))
 
 
-def kalman_filter(
-    gyro: ArrayLike,
-    acc: ArrayLike,
-    mag: ArrayLike,
-    dt: float | None = None,
-    config: KFConfig | None = None,
-    init_euler: ArrayLike | None = None,
-    *,
-    store_gains: bool = False,
-    method: Literal["auto", "block", "general"] = "auto",
-) -> KFResult:
+def kalman_filter(gyro: ArrayLike, acc: ArrayLike, mag: ArrayLike, dt: float | None = None,
+                  config: KFConfig | None = None, init_euler: ArrayLike | None = None, *,
+                  store_gains: bool = False, method: Literal["auto", "block", "general"] = "auto") -> KFResult:
     """Run the paper's KF (eqs 3-7) over raw sensor arrays.
 
     Parameters
@@ -329,44 +298,22 @@ def kalman_filter(
     dt = _step(dt, cfg)
     arrays = sensor_arrays(gyro=gyro, acc=acc, mag=mag)
     n = len(arrays["gyro"])
-    pf0, ph0 = initial_tilt(init_euler, cfg)
-
-    block = use_block_path(cfg, method)
-    seq = gain_sequence(dt, cfg, n_max=n, method="block" if block else "general")
-
+    start = [*map(float, cfg.x0), *initial_tilt(init_euler, cfg)]
+    seq = gain_sequence(dt, cfg, n_max=n, method=method)
     tilt, rows = measurement_rows(arrays)
-    start = [*map(float, cfg.x0), pf0, ph0]
     steps = recursion(rows, _step_gains(seq, n), start, dt, cfg.wrap_yaw_innovation)
+    # res rows: the a-posteriori state (phi, b_phi, theta, b_theta, psi, b_psi), u (3) and psi_mag
     res = np.fromiter(chain.from_iterable(steps), dtype=float, count=10 * n).reshape(n, 10).T
-    euler = np.column_stack((res[0], res[2], res[4]))
-    bias = np.column_stack((res[1], res[3], res[5]))
-    rates = np.column_stack(res[6:9])
-    meas = np.column_stack((tilt[:, 0], tilt[:, 1], res[9]))
-    last = min(n, len(seq)) - 1
-    n_tr = min(n, len(seq) - 1 if seq.converged else len(seq))
-    stored = seq.K[np.minimum(np.arange(n), last)] if store_gains else None
-    return KFResult(
-        euler=euler,
-        bias=bias,
-        measurements=meas,
-        rates=rates,
-        gain=seq.K[last].copy(),
-        P=seq.P_post[last].copy(),
-        n_transient=n_tr,
-        dt=dt,
-        config=cfg,
-        gains=stored,
-        path="block" if block else "general",
-    )
+    last = min(n, len(seq)) - 1  # the step whose gain every later step uses
+    return KFResult(euler=np.column_stack((res[0], res[2], res[4])), bias=np.column_stack((res[1], res[3], res[5])),
+                    measurements=np.column_stack((tilt[:, 0], tilt[:, 1], res[9])), rates=np.column_stack(res[6:9]),
+                    gain=seq.K[last].copy(), P=seq.P_post[last].copy(),
+                    n_transient=min(n, len(seq) - 1 if seq.converged else len(seq)), dt=dt, config=cfg,
+                    gains=seq.K[np.minimum(np.arange(n), last)] if store_gains else None, path=seq.path)
 
 
-def run_kf(
-    rec: "Recording",
-    config: KFConfig | None = None,
-    *,
-    store_gains: bool = False,
-    method: Literal["auto", "block", "general"] = "auto",
-) -> KFResult:
+def run_kf(rec: "Recording", config: KFConfig | None = None, *, store_gains: bool = False,
+           method: Literal["auto", "block", "general"] = "auto") -> KFResult:
     """Run the paper's KF over a :class:`~danae_lite.data.recording.Recording`.
 
     ``dt`` is ``config.dt`` or, if that is ``None``, ``1 / rec.fs``; with
@@ -377,6 +324,4 @@ def run_kf(
     cfg = config or KFConfig()
     dt = cfg.dt if cfg.dt is not None else rec.dt
     init = rec.euler[0] if cfg.init_from_truth else None
-    return kalman_filter(
-        rec.gyro, rec.acc, rec.mag, dt, cfg, init_euler=init, store_gains=store_gains, method=method
-    )
+    return kalman_filter(rec.gyro, rec.acc, rec.mag, dt, cfg, init_euler=init, store_gains=store_gains, method=method)

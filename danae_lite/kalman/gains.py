@@ -2,10 +2,10 @@ r"""The data-independent half of the paper's Kalman filter: the gain and covaria
 eqs (4), (5), (7), and its steady state from the discrete algebraic Riccati equation.
 
 ``P`` and ``K`` depend on the settings and the step, never on the data, so they are computed
-once per setting (and remembered) before :func:`danae_lite.kalman.filter.kalman_filter` runs its
-data loop. When ``P0``, ``Q`` are block-diagonal in the (angle, bias) pairs and ``R`` is
-diagonal, each angle's 2-state block is iterated alone with plain scalars; otherwise the full
-6x6 matrices are.
+once per run before :func:`danae_lite.kalman.filter.kalman_filter` runs its data loop. When
+``P0``, ``Q`` are block-diagonal in the (angle, bias) pairs and ``R`` is diagonal, each angle's
+2-state block is iterated alone with plain scalars (and remembered for the next run); otherwise
+the full 6x6 matrices are.
 """
 from __future__ import annotations
 
@@ -20,7 +20,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from .model import BLOCKS, KFConfig, check_dt, system_matrices
 
-__all__ = ["GainSequence", "SteadyState", "block_gains", "gain_sequence", "steady_state", "use_block_path"]
+__all__ = ["GainSequence", "SteadyState", "block_gains", "block_settings", "gain_sequence", "steady_state"]
 
 _REL_TOL = 4.0 * np.finfo(float).eps
 """Relative change below which the gain/covariance recursion counts as converged."""
@@ -40,11 +40,14 @@ class GainSequence:
         True if ``K`` and ``P`` stopped changing (relative max-norm change <= 4 eps) by step
         ``M - 1`` (in the block form each block stops on its own and is padded with its
         converged values); False if the sequence was cut at the requested length.
+    path : str
+        ``"block"`` (three 2-state blocks iterated alone) or ``"general"`` (the 6x6 matrices).
     """
 
     K: NDArray[np.float64]
     P_post: NDArray[np.float64]
     converged: bool
+    path: str
 
     def __len__(self) -> int:
         return int(self.K.shape[0])
@@ -77,18 +80,24 @@ def _block_recursion(
         p11 = a11 - n1 * a01
         ks.append((n0, n1))
         ps.append((p00, p01, p11))
-        if (
-            max(abs(n0 - k0), abs(n1 - k1)) <= tol * max(abs(n0), abs(n1))
-            and max(abs(p00 - o00), abs(p01 - o01), abs(p11 - o11)) <= tol * max(abs(p00), abs(p01), abs(p11))
-        ):
+        if (max(abs(n0 - k0), abs(n1 - k1)) <= tol * max(abs(n0), abs(n1))
+                and max(abs(p00 - o00), abs(p01 - o01), abs(p11 - o11)) <= tol * max(abs(p00), abs(p01), abs(p11))):
             return ks, ps, True
         k0, k1 = n0, n1
     return ks, ps, False
 
 
+def block_settings(cfg: KFConfig) -> list[tuple[float, ...]]:
+    """The roll, pitch and yaw blocks of ``cfg`` as :func:`block_gains` takes them:
+    ``(p00, p01, p11, q00, q01, q11, r)`` of each (angle, bias) pair and its measurement."""
+    P0, Q, R = cfg.P0, cfg.Q, cfg.R
+    return [tuple(map(float, (P0[a, a], P0[a, b], P0[b, b], Q[a, a], Q[a, b], Q[b, b], R[j, j])))
+            for j, (a, b) in enumerate(BLOCKS)]
+
+
 def block_gains(block: tuple[float, ...], dt: float, n_max: int
-                        ) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]:
-    """:func:`_block_recursion` of ``block`` = (p00, p01, p11, q00, q01, q11, r) as read-only arrays
+                ) -> tuple[NDArray[np.float64], NDArray[np.float64], bool]:
+    """:func:`_block_recursion` of ``block`` (see :func:`block_settings`) as read-only arrays
     (K: (m, 2), P: (m, 3)), remembered for the last :data:`_BLOCK_CACHE_SIZE` blocks.
 
     A tuning grid repeats blocks: the roll and pitch blocks of every setting share their
@@ -97,22 +106,17 @@ def block_gains(block: tuple[float, ...], dt: float, n_max: int
     ``n_max`` steps, or the first ``n_max`` steps of a longer one (not converged within them).
     """
     key = (*block, float(dt))
-    hit = _BLOCK_CACHE.get(key)
-    if hit is not None:
-        K, P, converged = hit
-        if converged and len(K) <= n_max:
-            _BLOCK_CACHE.move_to_end(key)
-            return hit
-        if len(K) >= n_max:
-            _BLOCK_CACHE.move_to_end(key)
-            return K[:n_max], P[:n_max], False
-    ks, ps, converged = _block_recursion(*block, dt, n_max)
-    K, P = np.asarray(ks), np.asarray(ps)
-    K.setflags(write=False)
-    P.setflags(write=False)
-    _BLOCK_CACHE[key] = (K, P, converged)
-    while len(_BLOCK_CACHE) > _BLOCK_CACHE_SIZE:
+    K, P, converged = _BLOCK_CACHE.pop(key, ((), (), False))
+    if not converged and len(K) < n_max:  # nothing remembered, or a shorter run that did not converge
+        ks, ps, converged = _block_recursion(*block, dt, n_max)
+        K, P = np.asarray(ks), np.asarray(ps)
+        K.setflags(write=False)
+        P.setflags(write=False)
+    _BLOCK_CACHE[key] = (K, P, converged)  # the most recently used last
+    if len(_BLOCK_CACHE) > _BLOCK_CACHE_SIZE:
         _BLOCK_CACHE.popitem(last=False)
+    if len(K) > n_max:
+        return K[:n_max], P[:n_max], False
     return K, P, converged
 
 
@@ -121,63 +125,46 @@ _BLOCK_CACHE_SIZE = 128
 """Blocks remembered by :func:`block_gains` (each at most 40 bytes per step)."""
 
 
-def _block_gain_sequence(
-    dt: float, P0: NDArray[np.float64], Q: NDArray[np.float64], R: NDArray[np.float64], n_max: int
-) -> GainSequence:
+def _block_gain_sequence(dt: float, cfg: KFConfig, n_max: int) -> GainSequence:
     """The three decoupled blocks, each iterated until it converges, then padded."""
-    per_block = [
-        block_gains(tuple(map(float, (P0[a, a], P0[a, b], P0[b, b], Q[a, a], Q[a, b], Q[b, b], R[j, j]))),
-                            dt, n_max)
-        for j, (a, b) in enumerate(BLOCKS)
-    ]
-    m = max(len(ks) for ks, _, _ in per_block)
+    per_block = [block_gains(block, dt, n_max) for block in block_settings(cfg)]
+    m = max(len(k) for k, _, _ in per_block)
     K = np.zeros((m, 6, 3))
     P = np.zeros((m, 6, 6))
-    for j, ((a, b), (ks, ps, _)) in enumerate(zip(BLOCKS, per_block)):
-        kk = np.asarray(ks)
-        pp = np.asarray(ps)
-        n = len(kk)
-        K[:n, a, j], K[:n, b, j] = kk[:, 0], kk[:, 1]
-        K[n:, a, j], K[n:, b, j] = kk[-1, 0], kk[-1, 1]
-        P[:n, a, a], P[:n, a, b], P[:n, b, b] = pp[:, 0], pp[:, 1], pp[:, 2]
-        P[n:, a, a], P[n:, a, b], P[n:, b, b] = pp[-1, 0], pp[-1, 1], pp[-1, 2]
+    for j, ((a, b), (kb, pb, _)) in enumerate(zip(BLOCKS, per_block)):
+        pad = np.minimum(np.arange(m), len(kb) - 1)  # a block converged sooner keeps its last values
+        K[:, a, j], K[:, b, j] = kb[pad].T
+        P[:, a, a], P[:, a, b], P[:, b, b] = pb[pad].T
         P[:, b, a] = P[:, a, b]
-    return GainSequence(K=K, P_post=P, converged=all(c for _, _, c in per_block))
+    return GainSequence(K=K, P_post=P, converged=all(c for _, _, c in per_block), path="block")
 
 
-def _general_gain_sequence(
-    dt: float, P0: NDArray[np.float64], Q: NDArray[np.float64], R: NDArray[np.float64], n_max: int
-) -> GainSequence:
+def _general_gain_sequence(dt: float, cfg: KFConfig, n_max: int) -> GainSequence:
     """Plain 6x6 matrix recursion of eqs 4, 5, 7 (same stopping rule)."""
-    A, _, C = system_matrices(dt)
-    P = np.array(P0, dtype=float)
+    A = system_matrices(dt)[0]
+    P = cfg.P0
     Ks: list[NDArray[np.float64]] = []
     Ps: list[NDArray[np.float64]] = []
     K_old = np.full((6, 3), np.nan)
     converged = False
     for _ in range(n_max):
-        Pp = A @ P @ A.T + Q
+        Pp = A @ P @ A.T + cfg.Q  # P' = A P A^T + Q
         PCt = Pp[:, 0::2]  # P' C^T: C selects states 0, 2, 4
-        K = PCt @ np.linalg.inv(PCt[0::2] + R)  # P' C^T (C P' C^T + R)^-1
+        K = PCt @ np.linalg.inv(PCt[0::2] + cfg.R)  # P' C^T (C P' C^T + R)^-1
         P_old = P
         P = Pp - K @ Pp[0::2]  # (I - K C) P' = P' - K (C P')
         Ks.append(K)
         Ps.append(P)
-        if np.abs(K - K_old).max() <= _REL_TOL * np.abs(K).max() and np.abs(P - P_old).max() <= _REL_TOL * np.abs(
-            P
-        ).max():
-            converged = True
+        converged = bool(np.abs(K - K_old).max() <= _REL_TOL * np.abs(K).max()
+                         and np.abs(P - P_old).max() <= _REL_TOL * np.abs(P).max())
+        if converged:
             break
         K_old = K
-    return GainSequence(K=np.asarray(Ks), P_post=np.asarray(Ps), converged=converged)
+    return GainSequence(K=np.asarray(Ks), P_post=np.asarray(Ps), converged=converged, path="general")
 
 
-def gain_sequence(
-    dt: float,
-    config: KFConfig | None = None,
-    n_max: int = 100_000,
-    method: Literal["auto", "block", "general"] = "auto",
-) -> GainSequence:
+def gain_sequence(dt: float, config: KFConfig | None = None, n_max: int = 100_000,
+                  method: Literal["auto", "block", "general"] = "auto") -> GainSequence:
     """Iterate eqs (4), (5), (7) from ``config.P0`` until ``K`` and ``P`` converge.
 
     Parameters
@@ -198,43 +185,20 @@ def gain_sequence(
         Stops at the first step whose ``K`` and ``P`` equal the previous ones to a relative
         4 eps (max-norm); the steady gain is then ``K[-1]``. In the block form each block
         stops on its own and is padded with its converged values. Small ``Q`` (a filter
-        that trusts the gyro) converges slowly: thousands of steps. Results are cached
-        (read-only arrays) for the last few settings.
+        that trusts the gyro) converges slowly: thousands of steps. The blocks are
+        remembered (:func:`block_gains`) for the next setting that shares them.
     """
     check_dt(dt)
     cfg = config or KFConfig()
     if n_max < 1:
         raise ValueError(f"n_max must be >= 1, got {n_max}")
-    block = use_block_path(cfg, method)
-    key = (block, float(dt), cfg.P0.tobytes(), cfg.Q.tobytes(), cfg.R.tobytes())
-    hit = _GAIN_CACHE.get(key)
-    if hit is not None and (hit.converged or len(hit) >= n_max):
-        _GAIN_CACHE.move_to_end(key)
-        if len(hit) <= n_max:
-            return hit
-        return GainSequence(K=hit.K[:n_max], P_post=hit.P_post[:n_max], converged=False)
-    fn = _block_gain_sequence if block else _general_gain_sequence
-    seq = fn(float(dt), cfg.P0, cfg.Q, cfg.R, int(n_max))
-    seq.K.setflags(write=False)
-    seq.P_post.setflags(write=False)
-    _GAIN_CACHE[key] = seq
-    while len(_GAIN_CACHE) > _GAIN_CACHE_SIZE:
-        _GAIN_CACHE.popitem(last=False)
-    return seq
-
-
-_GAIN_CACHE: "OrderedDict[tuple[object, ...], GainSequence]" = OrderedDict()
-_GAIN_CACHE_SIZE = 8
-
-
-def use_block_path(cfg: KFConfig, method: str) -> bool:
-    """Whether ``method`` (``"auto"``, ``"block"``, ``"general"``) runs the block path for ``cfg``;
-    ValueError for an unknown method or ``"block"`` with coupled covariances."""
     if method not in ("auto", "block", "general"):
         raise ValueError(f"method must be 'auto', 'block' or 'general', got {method!r}")
     if method == "block" and not cfg.block_diagonal:
         raise ValueError("method='block' needs block-diagonal P0, Q and a diagonal R")
-    return method == "block" or (method == "auto" and cfg.block_diagonal)
+    if method == "general" or not cfg.block_diagonal:
+        return _general_gain_sequence(float(dt), cfg, int(n_max))
+    return _block_gain_sequence(float(dt), cfg, int(n_max))
 
 
 @dataclass(frozen=True, eq=False)

@@ -20,14 +20,18 @@ import numpy as np
 from numpy.typing import NDArray
 
 from . import gains as kf_gains, model
-from .filter import TRIG_NUMPY, initial_tilt, measurement_rows, recursion, sensor_arrays
+from .filter import initial_tilt, measurement_rows, recursion, sensor_arrays
 from .model import KFConfig
 from ..angles import euler_error_angle, wrap
 
 if TYPE_CHECKING:  # pragma: no cover
     from ..data.recording import Recording
 
-__all__ = ["GridScores", "run_kf_grid", "score_kf_grid"]
+__all__ = ["GridScores", "TRIG_NUMPY", "run_kf_grid", "score_kf_grid"]
+
+TRIG_NUMPY = (np.sin, np.cos, np.arctan2)
+"""``sin``, ``cos``, ``atan2`` for a batch of settings held in NumPy vectors
+(:data:`danae_lite.kalman.filter.TRIG_MATH` is the same for one setting of plain floats)."""
 
 MAX_GRID_BYTES = 512 * 2**20
 """Largest estimate array [bytes] one pass of :func:`score_kf_grid` holds (24 bytes per sample
@@ -36,18 +40,12 @@ _SCORE_ELEMENTS = 4_000_000
 """Samples x settings scored at once (each temporary array: 32 MB)."""
 
 
-def _block_key(cfg: KFConfig, a: int, b: int, j: int) -> tuple[float, ...]:
-    """(p00, p01, p11, q00, q01, q11, r) of the (angle a, bias b) block measured by ``y_j``."""
-    P0, Q, R = cfg.P0, cfg.Q, cfg.R
-    return tuple(map(float, (P0[a, a], P0[a, b], P0[b, b], Q[a, a], Q[a, b], Q[b, b], R[j, j])))
-
-
 class _Gains:
     """The per-step gains of every setting, stored once per distinct (angle, bias) block.
 
     A grid repeats blocks (roll and pitch share theirs; 324 tuned-KF settings hold 36 distinct
     blocks), so the gains are kept as ``(m, 2 * B)`` for the ``B`` distinct blocks, each padded
-    with its converged gain, and :meth:`at` gathers step ``t``'s ``(6, K)`` gains
+    with its converged gain, and :meth:`steps` gathers step ``t``'s ``(6, K)`` gains
     (K00, K10, K21, K31, K42, K52 per setting) with one ``take``.
     """
 
@@ -55,8 +53,8 @@ class _Gains:
         keys: dict[tuple[float, ...], int] = {}
         index = np.empty((6, len(configs)), dtype=np.intp)
         for k, cfg in enumerate(configs):
-            for j, (a, b) in enumerate(model.BLOCKS):
-                u = keys.setdefault(_block_key(cfg, a, b, j), len(keys))
+            for (a, b), block in zip(model.BLOCKS, kf_gains.block_settings(cfg)):
+                u = keys.setdefault(block, len(keys))
                 index[a, k], index[b, k] = 2 * u, 2 * u + 1
         blocks = [kf_gains.block_gains(key, dt, n)[0] for key in keys]
         self.m = max(len(K) for K in blocks)

@@ -41,9 +41,10 @@ Faithfulness notes (see the authors' ``kalman_gyraccmag.py``)
   (``authors_typo=True``) for demonstration only.
 * No angle is ever wrapped: neither the innovation nor the state, exactly as in the
   authors' code (``KFConfig(wrap_yaw_innovation=True)`` wraps the yaw innovation to
-  [-pi, pi), a fix the paper's setting does not use). The yaw estimate is unbounded (it can leave [-pi, pi)); when the heading
-  crosses +-pi the measurement jumps by 2 pi, the innovation ``psi_mag - psi'`` with it,
-  and the yaw estimate and its bias go through a large transient.
+  [-pi, pi), a fix the paper's setting does not use). The yaw estimate is unbounded (it can
+  leave [-pi, pi)); when the heading crosses +-pi the measurement jumps by 2 pi, the
+  innovation ``psi_mag - psi'`` with it, and the yaw estimate and its bias go through a large
+  transient.
 * The authors' roll formula ``atan2(ay, sqrt(ax^2 + az^2))`` equals the true roll only at
   zero pitch: for a static pose it gives ``asin(sin(phi) cos(theta))``. Pitch is exact.
 """
@@ -87,10 +88,7 @@ def accel_tilt(acc: ArrayLike) -> NDArray[np.float64]:
         ``theta`` this is ``(asin(sin(phi) cos(theta)), theta)``: roll is exact only at
         zero pitch (the formula is the authors', kept as is).
     """
-    a = np.atleast_2d(np.asarray(acc, dtype=float))
-    if a.ndim != 2 or a.shape[1] != 3:
-        raise ValueError(f"acc must have shape (N, 3), got {np.shape(acc)}")
-    ax, ay, az = a[:, 0], a[:, 1], a[:, 2]
+    ax, ay, az = _rows_of_3(acc, "acc").T
     roll = np.arctan2(ay, np.sqrt(ax * ax + az * az))
     pitch = np.arctan2(-ax, np.sqrt(ay * ay + az * az))
     return np.column_stack((roll, pitch))
@@ -123,13 +121,9 @@ def mag_heading(mag: ArrayLike, roll: ArrayLike, pitch: ArrayLike) -> NDArray[np
     ndarray, shape (N,)
         Heading [rad] in (-pi, pi].
     """
-    m = np.atleast_2d(np.asarray(mag, dtype=float))
-    if m.ndim != 2 or m.shape[1] != 3:
-        raise ValueError(f"mag must have shape (N, 3), got {np.shape(mag)}")
-    m = unit_rows(m, "mag")
+    mx, my, mz = unit_rows(_rows_of_3(mag, "mag"), "mag").T
     sf, cf = np.sin(roll), np.cos(roll)
     sh, ch = np.sin(pitch), np.cos(pitch)
-    mx, my, mz = m[:, 0], m[:, 1], m[:, 2]
     return np.arctan2(-my * cf + mz * sf, mx * ch + my * sh * sf + mz * sh * cf)
 
 
@@ -153,13 +147,18 @@ def euler_rates(gyro: ArrayLike, roll: ArrayLike, pitch: ArrayLike) -> NDArray[n
     ndarray, shape (N, 3)
         :math:`(\dot\phi, \dot\theta, \dot\psi)` [rad/s]. Singular at pitch = +-pi/2.
     """
-    g = np.atleast_2d(np.asarray(gyro, dtype=float))
-    if g.ndim != 2 or g.shape[1] != 3:
-        raise ValueError(f"gyro must have shape (N, 3), got {np.shape(gyro)}")
-    p, q, r = g[:, 0], g[:, 1], g[:, 2]
+    p, q, r = _rows_of_3(gyro, "gyro").T
     sf, cf = np.sin(roll), np.cos(roll)
     ch, th = np.cos(pitch), np.tan(pitch)
     return np.column_stack((p + sf * th * q + cf * th * r, cf * q - sf * r, sf / ch * q + cf / ch * r))
+
+
+def _rows_of_3(value: ArrayLike, name: str) -> NDArray[np.float64]:
+    """``value`` as float rows of 3 (a single (3,) vector is one row); ValueError naming ``name`` otherwise."""
+    a = np.atleast_2d(np.asarray(value, dtype=float))
+    if a.ndim != 2 or a.shape[1] != 3:
+        raise ValueError(f"{name} must have shape (N, 3), got {np.shape(value)}")
+    return a
 
 
 def unit_rows(m: NDArray[np.float64], name: str) -> NDArray[np.float64]:
@@ -209,7 +208,7 @@ def check_dt(dt: float) -> None:
 
 def _as_cov(value: ArrayLike, n: int, name: str, definite: bool) -> NDArray[np.float64]:
     """Scalar -> value*I, 1-D -> diag, 2-D -> as is; check shape, symmetry, (semi)definiteness."""
-    a = np.asarray(value, dtype=float)
+    a = np.array(value, dtype=float)  # a copy, made read-only below
     if a.ndim == 0:
         a = float(a) * np.eye(n)
     elif a.ndim == 1:
@@ -228,7 +227,6 @@ def _as_cov(value: ArrayLike, n: int, name: str, definite: bool) -> NDArray[np.f
         raise ValueError(f"{name} must be positive definite (smallest eigenvalue {w.min():.3g})")
     if w.min() < -1e-12 * scale:
         raise ValueError(f"{name} must be positive semi-definite (smallest eigenvalue {w.min():.3g})")
-    a = a.copy()
     a.setflags(write=False)
     return a
 
@@ -280,10 +278,9 @@ class KFConfig:
         if self.dt is not None:
             check_dt(self.dt)
             object.__setattr__(self, "dt", float(self.dt))
-        x0 = np.asarray(self.x0, dtype=float)
+        x0 = np.array(self.x0, dtype=float)
         if x0.shape != (6,) or not np.isfinite(x0).all():
             raise ValueError(f"x0 must be 6 finite numbers [phi, b_phi, theta, b_theta, psi, b_psi], got {x0!r}")
-        x0 = x0.copy()
         x0.setflags(write=False)
         object.__setattr__(self, "x0", x0)
 
@@ -292,20 +289,14 @@ class KFConfig:
         """The authors' exact setting: ``P0 = Q = I6``, ``R = I3``, ``x0 = 0``, ``dt = 0.1`` s
         for every dataset, roll/pitch seeded from the ground truth. Keyword arguments
         override single fields."""
-        kwargs: dict[str, object] = {"dt": AUTHORS_DT}
-        kwargs.update(overrides)
-        return cls(**kwargs)  # type: ignore[arg-type]
+        return cls(**{"dt": AUTHORS_DT, **overrides})  # type: ignore[arg-type]
 
     @property
     def block_diagonal(self) -> bool:
         """True when ``P0``, ``Q`` are block-diagonal in the (angle, bias) pairs and ``R``
         is diagonal, so the three angles are filtered independently."""
-        mask = np.zeros((6, 6), dtype=bool)
-        for a, b in BLOCKS:
-            mask[a : b + 1, a : b + 1] = True
-        return bool(
-            not self.P0[~mask].any() and not self.Q[~mask].any() and not (self.R - np.diag(np.diag(self.R))).any()
-        )
+        outside = ~np.kron(np.eye(3, dtype=bool), np.ones((2, 2), dtype=bool))  # off the three 2x2 blocks
+        return not (self.P0[outside].any() or self.Q[outside].any() or self.R[~np.eye(3, dtype=bool)].any())
 
     def __repr__(self) -> str:
         def short(m: NDArray[np.float64]) -> str:

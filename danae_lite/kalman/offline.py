@@ -51,20 +51,13 @@ def rts_smooth(result: KFResult) -> NDArray[np.float64]:
     n = len(x)
     A, B, _ = system_matrices(dt)
     seq = gain_sequence(dt, cfg, n_max=n, method=result.path)
-    m = len(seq)
+    # G_t = P_t A^T P'^-1_{t+1} for each distinct P_t (the last one stands for every later step)
+    G = [np.linalg.solve((A @ P @ A.T + cfg.Q).T, (P @ A.T).T).T for P in seq.P_post[: n - 1]]
     # one-step predictions of every state from the previous a-posteriori state
     x_prior_next = x[:-1] @ A.T + result.rates[1:] @ B.T
     out = x.copy()
-    G_steady = None
     for t in range(n - 2, -1, -1):
-        if t < m - 1 or G_steady is None:
-            P = seq.P_post[min(t, m - 1)]
-            G = np.linalg.solve((A @ P @ A.T + cfg.Q).T, (P @ A.T).T).T
-            if t >= m - 1:
-                G_steady = G
-        else:
-            G = G_steady
-        out[t] = x[t] + G @ (out[t + 1] - x_prior_next[t])
+        out[t] = x[t] + G[min(t, len(G) - 1)] @ (out[t + 1] - x_prior_next[t])
     return out
 
 

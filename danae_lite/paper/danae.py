@@ -42,8 +42,7 @@ def check_settings(targets: str, angles: Sequence[str]) -> tuple[str, ...]:
     """``angles`` as a tuple; ValueError for an unknown target kind or an empty or unknown angle set."""
     if targets not in TARGETS:
         raise ValueError(f"targets={targets!r}: choose 'continuous' or 'raw'")
-    unknown = [a for a in angles if a not in ANGLES]
-    if not angles or unknown:
+    if not angles or not set(angles) <= set(ANGLES):
         raise ValueError(f"angles must be a non-empty subset of {ANGLES}, got {tuple(angles)}")
     return tuple(angles)
 

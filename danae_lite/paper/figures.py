@@ -25,8 +25,6 @@ from numpy.typing import ArrayLike
 
 from .. import plots
 
-__all__ = ["PAPER_FIGURES", "SERIES_COLUMNS", "PaperFigure", "figure_series", "figure_window", "plot_kf_danae"]
-
 SERIES_COLUMNS: tuple[str, str, str, str] = ("time_s", "ground_truth", "kf", "danae")
 """Columns of a figure's data table: time [s] and three angle series [rad]."""
 
@@ -37,16 +35,12 @@ class PaperFigure:
 
     number: int
     """Figure number in the paper."""
-    experiment: str
-    """``"oxiod"`` or ``"ucs"``."""
     angle: str
     """``"roll"``, ``"pitch"`` or ``"yaw"``."""
     start: int
     """First test sample the authors plotted."""
     stop: int
     """One past the last test sample the authors plotted."""
-    caption: str
-    """The paper's caption, shortened."""
 
     @property
     def filename(self) -> str:
@@ -55,10 +49,8 @@ class PaperFigure:
 
 
 PAPER_FIGURES: dict[str, PaperFigure] = {
-    "oxiod": PaperFigure(1, "oxiod", "roll", 12500, 15000,
-                         "KF (above) and DANAE (below) roll estimates against the ground truth, OxIOD"),
-    "ucs": PaperFigure(2, "ucs", "pitch", 0, 1400,
-                       "KF (above) and DANAE (below) pitch estimates against the ground truth, UCS"),
+    "oxiod": PaperFigure(1, "roll", 12500, 15000),
+    "ucs": PaperFigure(2, "pitch", 0, 1400),
 }
 """The paper's Figure 1 (OxIOD roll) and Figure 2 (UCS pitch), by experiment."""
 
@@ -97,13 +89,10 @@ def figure_series(time_s: ArrayLike, truth: ArrayLike, kf: ArrayLike, danae: Arr
     for name, a in zip(SERIES_COLUMNS, arrays):
         if a.ndim != 1 or a.shape != n:
             raise ValueError(f"{name} must be a 1-D array of the same length as time_s {n}, got {a.shape}")
-    sl = slice(start, stop)
-    index = pd.RangeIndex(len(arrays[0]))[sl]
+    index = pd.RangeIndex(n[0], name="sample")[start:stop]
     if len(index) == 0:
         raise ValueError(f"sample range {start}:{stop} is empty for {n[0]} samples")
-    out = pd.DataFrame({c: a[sl] for c, a in zip(SERIES_COLUMNS, arrays)}, index=index)
-    out.index.name = "sample"
-    return out
+    return pd.DataFrame({c: a[start:stop] for c, a in zip(SERIES_COLUMNS, arrays)}, index=index)
 
 
 def plot_kf_danae(series: pd.DataFrame, angle: str, *, title: str | None = None,
@@ -113,9 +102,6 @@ def plot_kf_danae(series: pd.DataFrame, angle: str, *, title: str | None = None,
     Top panel: ground truth and KF; bottom panel: ground truth and DANAE. Both share the
     time axis [s] and the angle axis [rad], so the two errors can be compared by eye.
     """
-    missing = [c for c in SERIES_COLUMNS if c not in series.columns]
-    if missing:
-        raise ValueError(f"series lacks column(s) {', '.join(missing)}; expected {', '.join(SERIES_COLUMNS)}")
     fig, (top, bottom) = plt.subplots(2, 1, figsize=figsize, sharex=True, sharey=True)
     t = series["time_s"].to_numpy()
     for ax, method in ((top, "kf"), (bottom, "danae")):
@@ -123,7 +109,6 @@ def plot_kf_danae(series: pd.DataFrame, angle: str, *, title: str | None = None,
                           ylabel=plots.angle_label(angle))
         ax.legend(loc="upper right", fontsize=8)
     top.set_xlabel("")
-    bottom.set_xlabel("time [s]")
     if title:
         fig.suptitle(title, fontsize=10)
     fig.tight_layout()

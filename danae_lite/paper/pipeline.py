@@ -34,8 +34,8 @@ from ..data.recording import DataError, Recording
 from ..evaluate.scoring import seed_metrics
 from ..kalman.filter import run_kf
 from ..kalman.model import KFConfig
-from .danae import PaperDanae
-from .reproduction import Reproduction, SeedStudy, paper_values, score
+from .danae import PaperDanae, check_settings
+from .reproduction import Reproduction, SeedStudy, score
 
 
 def filter_all(recordings: Iterable[Recording], config: KFConfig | None = None) -> dict[str, NDArray[np.float64]]:
@@ -174,18 +174,14 @@ def reproduce(
     kf, danae = scores.blocks("all", angles)
     return Reproduction(
         experiment=exp, angles=angles, seeds=seeds, estimates=estimates, study=study, kf=kf, danae=danae,
-        paper=paper_values(exp.name, angles), seconds={"kf": t_kf, "train": t_train,
-                                                       "total": time.perf_counter() - t_start},
-        config=config, kf_config=kf_config, scores=scores)
+        seconds={"kf": t_kf, "train": t_train, "total": time.perf_counter() - t_start},
+        config=config, kf_config=kf_config, leaderboard=scores)
 
 
 def _checked(exp: Experiment, angles: Sequence[str], seeds: Sequence[int]) -> tuple[tuple[str, ...], list[int]]:
     """``angles`` as a tuple and ``seeds`` as ints; ValueError for an empty or unknown angle set,
     repeated or no seeds, or a recording name used twice."""
-    angles, seeds = tuple(angles), [int(s) for s in seeds]
-    unknown = [a for a in angles if a not in ANGLES]
-    if not angles or unknown:
-        raise ValueError(f"angles must be a non-empty subset of {ANGLES}, got {angles}")
+    angles, seeds = check_settings("raw", angles), [int(s) for s in seeds]
     if not seeds or len(set(seeds)) != len(seeds):
         raise ValueError(f"seeds must be distinct and non-empty, got {seeds}")
     names = [r.name for r in [*exp.train, *exp.test]]

@@ -5,7 +5,7 @@ command line writes from it are :mod:`danae_lite.commands.reproduce`'s.
 """
 from __future__ import annotations
 
-from collections.abc import Iterable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import matplotlib.pyplot as plt
@@ -21,7 +21,6 @@ from ..danae.train_types import TrainConfig, TrainResult
 from ..evaluate import metrics
 from ..evaluate.scoring import SUBSETS, score_rows
 from ..kalman.model import KFConfig
-from .figures import PAPER_FIGURES, PaperFigure
 
 MetricDict = dict[str, float]
 """``{"mean_dev", "max_dev", "rmse"}`` [rad] (DANAE: also ``"rmse_std"``)."""
@@ -49,35 +48,8 @@ class SeedStudy:
         dn = t[t.method == method].set_index(["test", "angle", "seed"])["rmse"]
         red = metrics.reduction_pct(dn, kf).rename("reduction [%]").reset_index()
         out = red.pivot_table(index="seed", columns="angle", values="reduction [%]", aggfunc="mean")
-        agg = {a: metrics.spread(out[a]) for a in out.columns}
-        out.loc["mean"] = {a: m for a, (m, _) in agg.items()}
-        out.loc["std"] = {a: sd for a, (_, sd) in agg.items()}
+        out.loc["mean"], out.loc["std"] = zip(*(metrics.spread(out[a]) for a in out.columns))
         return out
-
-
-def _joined(arrays: Iterable[NDArray[np.float64]]) -> NDArray[np.float64]:
-    return np.concatenate([np.asarray(a, dtype=float) for a in arrays])
-
-
-def paper_values(experiment: str, angles: Sequence[str]) -> dict[str, dict[str, MetricDict]] | None:
-    """The paper's Table 1 (``"oxiod"``) or 2 (``"ucs"``) as ``{method: {angle: metrics}}`` [rad].
-
-    Angles the paper does not report are left out; None when it reports none of ``angles``.
-    """
-    if experiment not in metrics.PAPER:
-        return None
-    out: dict[str, dict[str, MetricDict]] = {}
-    for method, rows in metrics.PAPER[experiment].items():
-        per_angle = {a: {m: rows[m][a] for m in metrics.METRICS} for a in angles}
-        out[method] = {a: {m: float(v) for m, v in vals.items()}  # type: ignore[arg-type]
-                       for a, vals in per_angle.items() if all(v is not None for v in vals.values())}
-    return out if any(out.values()) else None
-
-
-SCORE_COLUMNS: tuple[str, ...] = ("method", "samples", "angle", "mean_dev", "max_dev", "rmse", "rmse_std", "n")
-"""Columns of :attr:`Scores.table`: method "kf" or "danae", samples "all" or "clean", metrics
-[rad] (mean over seeds; ``rmse_std`` their sample std, NaN with one seed and for the KF), ``n``
-the sample count."""
 
 
 @dataclass
@@ -87,49 +59,41 @@ class Scores:
     mean over seeds), on all samples and on the clean ones."""
 
     table: pd.DataFrame
-    """:data:`SCORE_COLUMNS`, one row per method, subset and angle."""
+    """One row per method, subset and angle: ``method`` "kf" or "danae", ``samples`` "all" or
+    "clean", ``angle``, the metrics ``mean_dev``, ``max_dev``, ``rmse`` [rad] (mean over seeds),
+    ``rmse_std`` (their sample std, NaN with one seed and for the KF), ``n`` (samples scored)."""
     clean: dict[str, NDArray[np.bool_]]
     """Clean ground-truth mask (:func:`danae_lite.data.groundtruth.clean_mask`) per recording name,
     training and test."""
-    predictions: dict[str, dict[str, list[NDArray[np.float64]]]]
-    """``{"kf" | "danae": {test recording: [(N, 3) roll, pitch, yaw [rad], one per seed]}}`` as
-    scored: the KF's yaw wrapped to [-π, π), DANAE's NaN for an angle without a network."""
 
     def blocks(self, samples: str, angles: Sequence[str]) -> tuple[dict[str, MetricDict], dict[str, MetricDict]]:
         """``(kf, danae)``: ``{angle: {mean_dev, max_dev, rmse}}`` [rad] on ``samples`` ("all" or
         "clean"), DANAE's also with ``rmse_std``."""
         rows = self.table[self.table.samples == samples].set_index(["method", "angle"])
-        out = {m: {a: {k: float(rows.loc[(m, a), k]) for k in metrics.METRICS} for a in angles}
-               for m in ("kf", "danae")}
-        for a in angles:
-            out["danae"][a]["rmse_std"] = float(rows.loc[("danae", a), "rmse_std"])
-        return out["kf"], out["danae"]
+        kf = rows.loc["kf"].loc[list(angles), list(metrics.METRICS)]
+        danae = rows.loc["danae"].loc[list(angles), [*metrics.METRICS, "rmse_std"]]
+        return kf.T.to_dict(), danae.T.to_dict()
 
 
 def score(exp: Experiment, estimates: dict[str, NDArray[np.float64]], study: SeedStudy,
           angles: Sequence[str], seeds: Sequence[int]) -> Scores:
-    """Score the paper's KF (``estimates``, its yaw wrapped) and DANAE (the overlap predictions
-    of ``study``, one per seed) on ``exp.test``, on all and on the clean samples."""
+    """Score the paper's KF (``estimates``, its yaw wrapped to [-π, π)) and DANAE (the overlap
+    predictions of ``study``, one per seed; NaN for an angle without a network) on all
+    ``exp.test`` samples taken together, on all and on the clean samples."""
     clean = {r.name: clean_mask(r) for r in [*exp.train, *exp.test]}
-    preds: dict[str, dict[str, list[NDArray[np.float64]]]] = {"kf": {}, "danae": {}}
-    for r in exp.test:
-        kf = estimates[r.name].copy()
-        kf[:, 2] = wrap(kf[:, 2])
-        preds["kf"][r.name] = [kf]
-        preds["danae"][r.name] = []
-        for seed in seeds:
-            e = np.full((len(r), 3), np.nan)
-            for a in angles:
-                e[:, ANGLES.index(a)] = study.predictions[(a, seed, "overlap")][r.name]
-            preds["danae"][r.name].append(e)
     truth = np.concatenate([r.euler for r in exp.test])
     ok = np.concatenate([clean[r.name] for r in exp.test])
-    rows = []
-    for method, per_test in preds.items():
-        n_seeds = len(per_test[exp.test[0].name])
-        joined = [np.concatenate([per_test[r.name][s] for r in exp.test]) for s in range(n_seeds)]
-        rows += [{"method": method, **row} for row in score_rows(joined, truth, ok, angles)]
-    return Scores(table=pd.DataFrame(rows, columns=list(SCORE_COLUMNS)), clean=clean, predictions=preds)
+    kf = np.concatenate([estimates[r.name] for r in exp.test])
+    kf[:, 2] = wrap(kf[:, 2])
+    danae = []
+    for seed in seeds:
+        e = np.full_like(truth, np.nan)
+        for a in angles:
+            e[:, ANGLES.index(a)] = np.concatenate([study.predictions[(a, seed, "overlap")][r.name] for r in exp.test])
+        danae.append(e)
+    rows = [{"method": method, **row} for method, per_seed in (("kf", [kf]), ("danae", danae))
+            for row in score_rows(per_seed, truth, ok, angles)]
+    return Scores(table=pd.DataFrame(rows), clean=clean)
 
 
 @dataclass
@@ -156,8 +120,6 @@ class Reproduction:
     danae: dict[str, MetricDict]
     """``{angle: {mean_dev, max_dev, rmse, rmse_std}}`` of DANAE, mean (and RMSE std) over seeds [rad];
     ``rmse_std`` is NaN with one seed (:func:`danae_lite.evaluate.metrics.spread`)."""
-    paper: dict[str, dict[str, MetricDict]] | None
-    """The paper's values in the layout of ``kf``/``danae`` under keys "kf" and "danae", or None."""
     seconds: dict[str, float]
     """Wall time [s]: ``kf`` (filter on every recording), ``train`` (training and inference),
     ``total`` (the whole :func:`reproduce` call)."""
@@ -165,14 +127,20 @@ class Reproduction:
     """Training settings shared by every network (the seed is replaced per network)."""
     kf_config: KFConfig
     """Filter settings."""
-    scores: Scores
-    """The metrics on all and on clean test samples, the clean masks and the test predictions."""
+    leaderboard: Scores
+    """The metrics on all and on clean test samples by the leaderboard's rule, and the clean masks."""
 
     @property
-    def leaderboard(self) -> Scores:
-        """:attr:`scores`, under the name of the engine that once produced them (chapter 4 reads
-        ``rep.leaderboard.clean``)."""
-        return self.scores
+    def paper(self) -> dict[str, dict[str, MetricDict]] | None:
+        """The paper's Table 1 (OxIOD) or 2 (UCS) in the layout of :attr:`kf` / :attr:`danae`, under
+        keys "kf" and "danae" [rad]; angles the paper does not report are left out; None when it
+        reports none of :attr:`angles`."""
+        name = self.experiment.name
+        if name not in metrics.PAPER:
+            return None
+        out = {method: metrics.paper_table(name, method)[list(self.angles)].dropna(axis=1).to_dict()
+               for method in metrics.PAPER[name]}
+        return out if any(out.values()) else None
 
     def metrics_on(self, samples: str = "all") -> tuple[dict[str, MetricDict], dict[str, MetricDict]]:
         """``(kf, danae)`` as :attr:`kf` / :attr:`danae`, on ``"all"`` test samples (those
@@ -180,9 +148,7 @@ class Reproduction:
         :mod:`danae_lite.data.groundtruth` left out)."""
         if samples not in SUBSETS:
             raise ValueError(f"samples={samples!r}: choose 'all' or 'clean'")
-        if samples == "all":
-            return self.kf, self.danae
-        return self.scores.blocks("clean", self.angles)
+        return self.leaderboard.blocks(samples, self.angles)
 
     @property
     def data(self) -> str:
@@ -214,9 +180,7 @@ class Reproduction:
             ours = pd.DataFrame(vals).loc[list(metrics.METRICS), list(self.angles)]
             table = metrics.compare_with_paper(ours, self.experiment.name, method)
             for angle in self.angles:
-                table[(angle, "seed std")] = np.nan
-                if method == "danae":
-                    table.loc["rmse", (angle, "seed std")] = vals[angle]["rmse_std"]
+                table[(angle, "seed std")] = pd.Series({"rmse": vals[angle].get("rmse_std", np.nan)})
             blocks[label] = table[[(a, s) for a in self.angles for s in ("ours", "seed std", "paper")]]
         return pd.concat(blocks, names=["method"])
 
@@ -241,15 +205,12 @@ class Reproduction:
         seed = self.seeds[0] if seed is None else int(seed)
         recs = self.experiment.test
         return pd.DataFrame({
-            "ground_truth": _joined(r.euler[:, k] for r in recs),
-            "kf": _joined(self.estimates[r.name][:, k] for r in recs),
-            "danae": _joined(self.study.predictions[(angle, seed, "overlap")][r.name] for r in recs),
+            "ground_truth": np.concatenate([r.euler[:, k] for r in recs]),
+            "kf": np.concatenate([self.estimates[r.name][:, k] for r in recs]),
+            "danae": np.concatenate([self.study.predictions[(angle, seed, "overlap")][r.name] for r in recs]),
         })
 
-    def _figure_spec(self, spec: PaperFigure | None) -> PaperFigure:
-        return spec if spec is not None else PAPER_FIGURES[self.experiment.name]
-
-    def figure_series(self, spec: PaperFigure | None = None, seed: int | None = None) -> pd.DataFrame:
+    def figure_series(self, spec: figures.PaperFigure | None = None, seed: int | None = None) -> pd.DataFrame:
         """The samples of the paper's figure on the first test recording.
 
         ``spec`` (default: the experiment's figure in :data:`danae_lite.paper.figures.PAPER_FIGURES`)
@@ -258,7 +219,7 @@ class Reproduction:
         Returns a :func:`~danae_lite.paper.figures.figure_series` table: ``time_s`` [s],
         ``ground_truth``, ``kf``, ``danae`` [rad], indexed by test sample.
         """
-        spec = self._figure_spec(spec)
+        spec = spec or figures.PAPER_FIGURES[self.experiment.name]
         seed = self.seeds[0] if seed is None else int(seed)
         rec = self.experiment.test[0]
         k = ANGLES.index(spec.angle)
@@ -266,9 +227,9 @@ class Reproduction:
         return figures.figure_series(rec.time, rec.euler[:, k], self.estimates[rec.name][:, k],
                                      self.study.predictions[(spec.angle, seed, "overlap")][rec.name], start, stop)
 
-    def plot_figure(self, spec: PaperFigure | None = None, seed: int | None = None) -> plt.Figure:
+    def plot_figure(self, spec: figures.PaperFigure | None = None, seed: int | None = None) -> plt.Figure:
         """The paper's figure recreated (KF above, DANAE below, each against ground truth)."""
-        spec = self._figure_spec(spec)
+        spec = spec or figures.PAPER_FIGURES[self.experiment.name]
         seed = self.seeds[0] if seed is None else int(seed)
         series = self.figure_series(spec, seed)
         title = (f"Figure {spec.number} recreated: {spec.angle}, KF (above) and DANAE (below, seed {seed}) vs "

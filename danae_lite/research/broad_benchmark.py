@@ -26,9 +26,8 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
-from ..data.parsing import read_json
-from ..angles import quat_multiply
-from ..data.broad import TrialIndex
+from ..data.broad import TrialIndex, read_json
+from ..data.frames import quat_multiply
 from ..data.recording import DataError, Recording
 
 Array = NDArray[np.float64]
