@@ -162,10 +162,10 @@ def metrics_json(rep: Reproduction) -> dict[str, Any]:
 def metrics_table(rep: Reproduction) -> pd.DataFrame:
     """The table of ``metrics.csv``: one row per method ("kf", "danae") and angle, columns
     :data:`CSV_COLUMNS` [rad]; ``rmse_std`` is NaN for the KF, paper values NaN where absent."""
-    rows = []
+    rows, paper = [], rep.paper or {}
     for method, block in (("kf", rep.kf), ("danae", rep.danae)):
         for angle, vals in block.items():
-            ref = (rep.paper or {}).get(method, {}).get(angle, {})
+            ref = paper.get(method, {}).get(angle, {})
             rows.append({"method": method, "angle": angle, **{m: vals[m] for m in METRICS},
                          "rmse_std": vals.get("rmse_std", np.nan),
                          **{f"paper_{m}": ref.get(m, np.nan) for m in METRICS}})

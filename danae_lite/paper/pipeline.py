@@ -170,12 +170,10 @@ def reproduce(
         t = study.table[(study.table.angle == angle) & (study.table.seed == seed)]
         say(f"  {angle:<5} seed {seed}: {res.steps} steps in {res.seconds:.1f} s on {res.device}; test RMSE "
             f"KF {t[t.method == 'kf'].rmse.mean():.4f} -> DANAE {t[t.method == 'danae (overlap)'].rmse.mean():.4f} rad")
-    scores = score(exp, estimates, study, angles, seeds)
-    kf, danae = scores.blocks("all", angles)
     return Reproduction(
-        experiment=exp, angles=angles, seeds=seeds, estimates=estimates, study=study, kf=kf, danae=danae,
+        experiment=exp, angles=angles, seeds=seeds, estimates=estimates, study=study,
         seconds={"kf": t_kf, "train": t_train, "total": time.perf_counter() - t_start},
-        config=config, kf_config=kf_config, leaderboard=scores)
+        config=config, kf_config=kf_config, leaderboard=score(exp, estimates, study, angles, seeds))
 
 
 def _checked(exp: Experiment, angles: Sequence[str], seeds: Sequence[int]) -> tuple[tuple[str, ...], list[int]]:

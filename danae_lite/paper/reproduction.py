@@ -115,11 +115,6 @@ class Reproduction:
     """KF estimates ``{recording name: (N, 3) roll, pitch, yaw [rad]}`` (yaw unbounded)."""
     study: SeedStudy
     """All networks, their test predictions (stitch ``"overlap"``) and the per-recording table."""
-    kf: dict[str, MetricDict]
-    """``{angle: {mean_dev, max_dev, rmse}}`` of the KF [rad]."""
-    danae: dict[str, MetricDict]
-    """``{angle: {mean_dev, max_dev, rmse, rmse_std}}`` of DANAE, mean (and RMSE std) over seeds [rad];
-    ``rmse_std`` is NaN with one seed (:func:`danae_lite.evaluate.metrics.spread`)."""
     seconds: dict[str, float]
     """Wall time [s]: ``kf`` (filter on every recording), ``train`` (training and inference),
     ``total`` (the whole :func:`reproduce` call)."""
@@ -129,6 +124,18 @@ class Reproduction:
     """Filter settings."""
     leaderboard: Scores
     """The metrics on all and on clean test samples by the leaderboard's rule, and the clean masks."""
+
+    @property
+    def kf(self) -> dict[str, MetricDict]:
+        """``{angle: {mean_dev, max_dev, rmse}}`` of the KF on all test samples [rad]."""
+        return self.leaderboard.blocks("all", self.angles)[0]
+
+    @property
+    def danae(self) -> dict[str, MetricDict]:
+        """``{angle: {mean_dev, max_dev, rmse, rmse_std}}`` of DANAE on all test samples, mean (and
+        RMSE std) over seeds [rad]; ``rmse_std`` is NaN with one seed
+        (:func:`danae_lite.evaluate.metrics.spread`)."""
+        return self.leaderboard.blocks("all", self.angles)[1]
 
     @property
     def paper(self) -> dict[str, dict[str, MetricDict]] | None:
