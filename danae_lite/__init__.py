@@ -45,6 +45,7 @@ part of the package: ``tools/``.
 
 * :mod:`~danae_lite.evaluate.metrics`  the paper's error metrics and reported numbers
 * :mod:`~danae_lite.evaluate.scoring`  predictions -> metric rows, one rule for every table
+* :mod:`~danae_lite.evaluate.comparison`  the paired comparison: two methods' errors unit by unit, a verdict table per question
 * :mod:`~danae_lite.plots`  one plotting style for angles and methods
 * :mod:`~danae_lite.paper.danae`  the paper's DANAE as one estimator (a network per angle and seed)
 * :mod:`~danae_lite.paper.pipeline`  the paper's run: KF -> DANAE -> Tables 1-2 and Figures 1-2

@@ -20,7 +20,8 @@ prose, so that the number reads the same in the HTML book and in JupyterLab:
   recorded values (Python's format mini-language); a chapter calls it in a cell whose input
   the book removes and JupyterLab collapses, so both show the sentence with its numbers.
 
-and :func:`show_figure`, which shows a figure with its numbered caption as outputs of the cell,
+and :func:`glue_table`, which glues every value of a table (a verdict table of
+:mod:`danae_lite.evaluate.comparison`) by one call, and :func:`show_figure`, which shows a figure with its numbered caption as outputs of the cell,
 so that the HTML book and JupyterLab both show the caption under the figure (its alt text is
 the cell's ``mystnb.image.alt`` metadata).
 
@@ -74,6 +75,17 @@ def glue(name: str, value: Any, display: bool = False) -> None:
     markdown = getattr(value, "_repr_markdown_", None)
     _RECORDED[name] = markdown() if callable(markdown) else value
     myst_glue(name, value, display=display)
+
+
+def glue_table(prefix: str, table: Any) -> None:
+    """Glue every cell of the DataFrame ``table`` under ``{prefix}_{row}_{column}`` (row and
+    column labels as they are, spaces as underscores), so that prose and other pages quote a
+    table's values by one name each, all recorded by one call (numbers and text as they are,
+    so that a page quotes either with ``{glue:text}``)."""
+    for row, values in table.iterrows():
+        for column, value in values.items():
+            name = f"{prefix}_{row}_{column}".replace(" ", "_")
+            glue(name, value.item() if hasattr(value, "item") else value)
 
 
 def fill(template: str, values: dict[str, Any]) -> str:

@@ -137,3 +137,20 @@ def test_simulated_experiment_ignores_real_data(monkeypatch, tmp_path):
     exp = simulated_experiment("oxiod", fast=True, verbose=False)
     assert exp.data == "simulated" and [r.name for r in exp.test] == ["sim-handheld-0"]
     assert simulated_experiment("ucs", fast=True, verbose=False).data == "simulated"
+
+
+@pytest.mark.parametrize("name", ["oxiod", "ucs"])
+def test_more_simulated_test_recordings_leave_the_training_recordings_as_they_are(name):
+    from danae_lite.data.experiments import simulated_experiment
+
+    one = simulated_experiment(name, fast=True, verbose=False)
+    five = simulated_experiment(name, fast=True, tests=5, verbose=False)
+    assert [r.name for r in five.train] == [r.name for r in one.train]
+    for a, b in zip(one.train, five.train):
+        np.testing.assert_array_equal(a.gyro, b.gyro)
+        np.testing.assert_array_equal(a.quat, b.quat)
+    assert len(five.test) == 5 and len({r.name for r in five.test}) == 5
+    np.testing.assert_array_equal(five.test[0].acc, one.test[0].acc)
+    assert not np.allclose(five.test[1].acc[:50], five.test[2].acc[:50])   # independent draws
+    with pytest.raises(ValueError, match="at least 1"):
+        simulated_experiment(name, fast=True, tests=0, verbose=False)

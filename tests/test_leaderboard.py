@@ -161,3 +161,15 @@ def test_seed_rmse_gives_each_seeds_rmse_and_their_mean_is_the_tables(board):
     assert len(board.seed_rmse("vqf", "roll")) == 1 and len(board.seed_rmse("danae", "roll")) == 2
     with pytest.raises(ValueError, match="choose 'clean' or 'all'"):
         board.seed_rmse("vqf", "roll", "some")
+
+
+def test_recording_rmse_scores_each_test_recording_alone_per_seed(board):
+    rec = board.experiment.test[0]
+    got = board.recording_rmse("danae", "pitch", "all")
+    assert got.shape == (1, 2)
+    ref = [metrics.metric_table(p, rec.euler).loc["rmse", "pitch"] for p in board.predictions["danae"][rec.name]]
+    np.testing.assert_allclose(got[0], ref, rtol=1e-12)
+    # one test recording: the joined score of every seed is the recording's own
+    np.testing.assert_allclose(board.seed_rmse("danae", "pitch", "all"), got[0], rtol=1e-12)
+    with pytest.raises(ValueError, match="choose 'clean' or 'all'"):
+        board.recording_rmse("danae", "pitch", "some")

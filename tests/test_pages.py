@@ -268,8 +268,10 @@ def test_the_verdicts_page_quotes_values_the_chapters_store():
 def test_the_verdicts_check_finds_a_value_no_chapter_stores(tmp_path):
     page = tmp_path / "verdicts.md"
     page.write_text("| a | {glue:text}`../notebooks/04_reproduce_paper.ipynb::ch4_red_roll:.1f` % |\n"
-                    "| b | {glue:text}`../notebooks/04_reproduce_paper.ipynb::no_such_value:.1f` |\n")
-    assert missing_verdict_values(page) == ["04_reproduce_paper::no_such_value"]
+                    "| b | {glue:text}`../notebooks/04_reproduce_paper.ipynb::no_such_value:.1f` |\n"
+                    "| c | {glue:text}`../notebooks/06_cross_validation.ipynb::no_such_verdict` |\n")
+    assert missing_verdict_values(page) == ["04_reproduce_paper::no_such_value",
+                                            "06_cross_validation::no_such_verdict"]
 
 
 def test_the_verdicts_page_is_in_the_table_of_contents():

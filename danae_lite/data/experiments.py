@@ -161,32 +161,42 @@ def load_experiment(name: str = "oxiod", data_dir: str | os.PathLike[str] | None
     return exp
 
 
-def simulated_experiment(name: str = "oxiod", *, fast: bool = False, seed: int = 0,
+def simulated_experiment(name: str = "oxiod", *, fast: bool = False, seed: int = 0, tests: int = 1,
                          verbose: bool = True) -> Experiment:
     """The simulator's stand-in for ``"oxiod"`` (handheld scenario) or ``"ucs"``
     (underwater), whatever data directory is set: the same recordings :func:`load_experiment`
-    falls back to."""
+    falls back to, with ``tests`` independently simulated test recordings instead of one (the
+    training recordings, and so every network trained on them, stay the same): handheld, the
+    seeds ``seed + 0`` and ``seed + 4 ..``; underwater, the last 20 % of the recordings of seeds
+    ``seed + 0 .. seed + tests - 1``."""
     _check_name(name)
-    exp = _simulated(name, "Simulated: ", fast, seed)
+    if tests < 1:
+        raise ValueError(f"tests must be at least 1, got {tests}")
+    exp = _simulated(name, "Simulated: ", fast, seed, tests)
     if verbose:
         print(exp.note)
     return exp
 
 
-def _simulated(name: str, lead: str, fast: bool, seed: int) -> Experiment:
+def _simulated(name: str, lead: str, fast: bool, seed: int, tests: int = 1) -> Experiment:
     """The simulated stand-in for ``name``, its note starting with ``lead``: four handheld
-    recordings (seeds ``seed + 0..3``, test = the first) or one underwater recording split 80/20."""
+    recordings (seeds ``seed + 0..3``, test = the first) or one underwater recording split 80/20;
+    ``tests`` > 1 adds independent test recordings (:func:`simulated_experiment`)."""
     from .simulate import simulate
 
     if name == "oxiod":
         duration = FAST_DURATION["handheld"] if fast else None
         recs = [simulate("handheld", duration=duration, seed=seed + i, name=f"sim-handheld-{i}") for i in range(4)]
+        more = [simulate("handheld", duration=duration, seed=seed + i, name=f"sim-handheld-{i}")
+                for i in range(4, 4 + tests - 1)]
+        held = "sim-handheld-0" + (f" and 4..{2 + tests}" if tests > 1 else "")
         note = (f"{lead}the handheld simulator stands in "
-                f"(train sim-handheld-1..3, test sim-handheld-0, {recs[0].duration:g} s each).")
-        return Experiment("oxiod", "simulated", recs[1:], recs[:1], note)
+                f"(train sim-handheld-1..3, test {held}, {recs[0].duration:g} s each).")
+        return Experiment("oxiod", "simulated", recs[1:], recs[:1] + more, note)
     duration = FAST_DURATION["underwater"] if fast else None
-    rec = simulate("underwater", duration=duration, seed=seed, name="sim-underwater-0")
-    train, test = ucs.split_train_test(rec, TRAIN_FRACTION)
+    recs = [simulate("underwater", duration=duration, seed=seed + i, name=f"sim-underwater-{i}") for i in range(tests)]
+    parts = [ucs.split_train_test(r, TRAIN_FRACTION) for r in recs]
+    more = "" if tests == 1 else f"; the last {1 - TRAIN_FRACTION:.0%} of {tests - 1} more such recordings test too"
     note = (f"{lead}the underwater simulator stands in "
-            f"({rec.duration:g} s, first {TRAIN_FRACTION:.0%} train, last {1 - TRAIN_FRACTION:.0%} test).")
-    return Experiment("ucs", "simulated", [train], [test], note)
+            f"({recs[0].duration:g} s, first {TRAIN_FRACTION:.0%} train, last {1 - TRAIN_FRACTION:.0%} test{more}).")
+    return Experiment("ucs", "simulated", [parts[0][0]], [test for _, test in parts], note)

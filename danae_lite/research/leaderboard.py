@@ -111,6 +111,17 @@ class Leaderboard:
         joined = [np.concatenate([self.predictions[name][r.name][s][:, k] for r in test]) for s in range(n_seeds)]
         return np.array([s["rmse"] for s in seed_metrics(joined, truth, angle, sel)])
 
+    def recording_rmse(self, name: str, angle: str, samples: str = "clean") -> NDArray[np.float64]:
+        """Method ``name``'s RMSE [rad] of ``angle`` on each test recording alone, one row per
+        recording (in :attr:`experiment` order) and one column per seed, on the ``samples``
+        "clean" or "all": the units of a comparison (:func:`danae_lite.evaluate.comparison.compare`)."""
+        if samples not in ("clean", "all"):
+            raise ValueError(f"samples={samples!r}: choose 'clean' or 'all'")
+        k = ANGLES.index(angle)
+        return np.array([[s["rmse"] for s in seed_metrics(
+            [p[:, k] for p in self.predictions[name][r.name]], r.euler[:, k], angle,
+            self.clean[r.name] if samples == "clean" else None)] for r in self.experiment.test])
+
     def trial_metrics(self) -> pd.DataFrame:
         """The BROAD benchmark's figures per method and test recording (:data:`TRIAL_COLUMNS`):
         total, heading and inclination RMSE [deg] over the movement phases by
