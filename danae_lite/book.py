@@ -31,7 +31,6 @@ The command that re-executes the chapters and stores their outputs is
 from __future__ import annotations
 
 import re
-import string
 from typing import Any
 
 from .danae.seeding import seed_everything
@@ -40,8 +39,8 @@ from .runtime import DEFAULT_SEED, RunSettings
 # values glued by the running chapter, by name (one chapter per kernel; setup() empties it)
 _RECORDED: dict[str, Any] = {}
 # the parts of Markdown that prose() leaves as they are: fenced code, inline code, maths (one group,
-# so that _VERBATIM.split() returns them at the odd positions, between the text to fill)
-_VERBATIM = re.compile(r"(^```.*?^```[^\n]*$|`[^`\n]*`|\$\$.*?\$\$|\$[^$\n]+\$)", re.S | re.M)
+# so that VERBATIM.split() returns them at the odd positions, between the text to fill)
+VERBATIM = re.compile(r"(^```.*?^```[^\n]*$|`[^`\n]*`|\$\$.*?\$\$|\$[^$\n]+\$)", re.S | re.M)
 
 
 def setup(seed: int = DEFAULT_SEED, *, verbose: bool = True) -> RunSettings:
@@ -82,10 +81,8 @@ def glue_table(prefix: str, table: Any) -> None:
     column labels as they are, spaces as underscores), so that prose and other pages quote a
     table's values by one name each, all recorded by one call (numbers and text as they are,
     so that a page quotes either with ``{glue:text}``)."""
-    for row, values in table.iterrows():
-        for column, value in values.items():
-            name = f"{prefix}_{row}_{column}".replace(" ", "_")
-            glue(name, value.item() if hasattr(value, "item") else value)
+    for (row, column), value in table.stack(future_stack=True).items():
+        glue(f"{prefix}_{row}_{column}".replace(" ", "_"), value.item() if hasattr(value, "item") else value)
 
 
 def fill(template: str, values: dict[str, Any]) -> str:
@@ -95,15 +92,9 @@ def fill(template: str, values: dict[str, Any]) -> str:
 
     Raises KeyError naming the field when ``values`` has no such name, ValueError for a brace
     that is not a field."""
-    parts = _VERBATIM.split(template)
+    parts = VERBATIM.split(template)
     parts[::2] = [_fill_plain(text, values) for text in parts[::2]]
     return "".join(parts)
-
-
-def fields(template: str) -> list[str]:
-    """The names of the fields of ``template`` outside code and maths, in order (see :func:`fill`)."""
-    return [name for text in _VERBATIM.split(template)[::2] for _, name, _, _ in string.Formatter().parse(text)
-            if name]
 
 
 def _fill_plain(text: str, values: dict[str, Any]) -> str:

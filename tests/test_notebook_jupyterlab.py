@@ -18,9 +18,7 @@ from pathlib import Path
 
 import pytest
 
-from danae_lite.book import fields
-
-from test_notebook_prose import NOTEBOOKS, markdown_outputs, templates
+from test_notebook_prose import NOTEBOOKS, fields, markdown_outputs, templates
 
 MYST_ONLY = {
     "a MyST role": re.compile(r"(?<![`\w])\{[a-z][\w:-]*\}`"),

@@ -15,14 +15,21 @@ chapter's code, in ``danae_lite`` or in the paper.
 import ast
 import json
 import re
+import string
 from functools import lru_cache
 from pathlib import Path
 
 import pytest
 
-from danae_lite.book import fields
+from danae_lite.book import VERBATIM
 
 ROOT = Path(__file__).resolve().parents[1]
+
+
+def fields(template: str) -> list[str]:
+    """The names of the fields of a prose() template outside code and maths, in order."""
+    return [name for text in VERBATIM.split(template)[::2] for _, name, _, _ in string.Formatter().parse(text)
+            if name]
 NOTEBOOKS = sorted((ROOT / "notebooks").glob("[0-9][0-9]_*.ipynb"))
 PAPER = ROOT.parent / "shared" / "reference" / "danae_metrosea2020.tex"
 MAX_CODE_LINE = 88

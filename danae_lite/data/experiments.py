@@ -184,19 +184,15 @@ def _simulated(name: str, lead: str, fast: bool, seed: int, tests: int = 1) -> E
     ``tests`` > 1 adds independent test recordings (:func:`simulated_experiment`)."""
     from .simulate import simulate
 
+    duration = FAST_DURATION["handheld" if name == "oxiod" else "underwater"] if fast else None
     if name == "oxiod":
-        duration = FAST_DURATION["handheld"] if fast else None
-        recs = [simulate("handheld", duration=duration, seed=seed + i, name=f"sim-handheld-{i}") for i in range(4)]
-        more = [simulate("handheld", duration=duration, seed=seed + i, name=f"sim-handheld-{i}")
-                for i in range(4, 4 + tests - 1)]
-        held = "sim-handheld-0" + (f" and 4..{2 + tests}" if tests > 1 else "")
-        note = (f"{lead}the handheld simulator stands in "
-                f"(train sim-handheld-1..3, test {held}, {recs[0].duration:g} s each).")
-        return Experiment("oxiod", "simulated", recs[1:], recs[:1] + more, note)
-    duration = FAST_DURATION["underwater"] if fast else None
-    recs = [simulate("underwater", duration=duration, seed=seed + i, name=f"sim-underwater-{i}") for i in range(tests)]
-    parts = [ucs.split_train_test(r, TRAIN_FRACTION) for r in recs]
+        recs = [simulate("handheld", duration=duration, seed=seed + i, name=f"sim-handheld-{i}") for i in range(3 + tests)]
+        note = (f"{lead}the handheld simulator stands in (train sim-handheld-1..3, test sim-handheld-0"
+                f"{f' and 4..{2 + tests}' if tests > 1 else ''}, {recs[0].duration:g} s each).")
+        return Experiment("oxiod", "simulated", recs[1:4], [recs[0], *recs[4:]], note)
+    parts = [ucs.split_train_test(simulate("underwater", duration=duration, seed=seed + i, name=f"sim-underwater-{i}"),
+                                  TRAIN_FRACTION) for i in range(tests)]
     more = "" if tests == 1 else f"; the last {1 - TRAIN_FRACTION:.0%} of {tests - 1} more such recordings test too"
-    note = (f"{lead}the underwater simulator stands in "
-            f"({recs[0].duration:g} s, first {TRAIN_FRACTION:.0%} train, last {1 - TRAIN_FRACTION:.0%} test{more}).")
+    note = (f"{lead}the underwater simulator stands in ({parts[0][0].duration + parts[0][1].duration:g} s, "
+            f"first {TRAIN_FRACTION:.0%} train, last {1 - TRAIN_FRACTION:.0%} test{more}).")
     return Experiment("ucs", "simulated", [parts[0][0]], [test for _, test in parts], note)
