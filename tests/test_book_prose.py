@@ -6,6 +6,8 @@ from IPython.display import Markdown
 
 from danae_lite import book
 
+from test_notebook_prose import fields
+
 
 def test_fill_formats_fields_with_python_format_specs():
     values = {"gain": 0.62213, "n": 1234, "change": -3.25, "name": "VQF"}
@@ -30,7 +32,8 @@ def test_fill_names_the_missing_field_and_the_sentence():
 
 
 def test_fields_lists_the_names_outside_maths_and_code():
-    assert book.fields("{a:.1f} $x_{b}$ `{c}` {d} {{e}}") == ["a", "d"]
+    # the prose tests' reading of a template, with book.VERBATIM
+    assert fields("{a:.1f} $x_{b}$ `{c}` {d} {{e}}") == ["a", "d"]
 
 
 def test_glue_records_numbers_and_markdown_for_prose(capsys, monkeypatch):
