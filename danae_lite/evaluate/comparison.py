@@ -25,7 +25,7 @@ log scale, where a ratio of errors is a difference:
 """
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -87,6 +87,11 @@ def _rmse_array(values: ArrayLike, name: str) -> np.ndarray:
     return x
 
 
+def _one_sample(test: str, d: np.ndarray, k: int | None) -> Comparison:
+    """The t of the mean of the log ratios ``d`` (paired over units, or over one arm's seeds)."""
+    return Comparison(test, len(d), float(d.mean()), float(d.std(ddof=1) / np.sqrt(len(d))), float(len(d) - 1), k)
+
+
 def compare(a: ArrayLike, b: ArrayLike) -> Comparison:
     """Method A against method B from their RMSEs (any one unit: rad or deg), each ``(units,)``
     or ``(units, seeds)``: row ``u`` holds the seeds' RMSE on unit ``u`` (a deterministic method
@@ -97,14 +102,11 @@ def compare(a: ArrayLike, b: ArrayLike) -> Comparison:
         raise ValueError(f"a has {len(la)} units and b {len(lb)}: the comparison is paired by unit")
     if len(la) >= MIN_UNITS:  # (i) per unit the mean over seeds of the log ratio
         d = la.mean(axis=1) - lb.mean(axis=1)
-        return Comparison(TESTS[0], len(d), float(d.mean()), float(d.std(ddof=1) / np.sqrt(len(d))),
-                          float(len(d) - 1), int((d < 0).sum()))
+        return _one_sample(TESTS[0], d, int((d < 0).sum()))
     if len(la) == 1:
         sa, sb = la[0], lb[0]
         if min(len(sa), len(sb)) == 1 < max(len(sa), len(sb)):  # (ii) one arm deterministic
-            d = sa - sb
-            return Comparison(TESTS[1], len(d), float(d.mean()), float(d.std(ddof=1) / np.sqrt(len(d))),
-                              float(len(d) - 1), None)
+            return _one_sample(TESTS[1], sa - sb, None)
         if len(sa) > 1 and len(sb) > 1:  # (iii) both arms trained: Welch
             va, vb = sa.var(ddof=1) / len(sa), sb.var(ddof=1) / len(sb)
             df = (va + vb) ** 2 / (va ** 2 / (len(sa) - 1) + vb ** 2 / (len(sb) - 1))
@@ -134,11 +136,10 @@ def verdict_words(low: float, high: float, *, goal_pct: float | None = None,
     return "higher error" if low > 0 else "no clear difference"
 
 
-def family_level(comparisons: Mapping[str, Comparison] | list[Comparison], alpha: float = ALPHA) -> tuple[float, int]:
+def family_level(comparisons: Sequence[Comparison], alpha: float = ALPHA) -> tuple[float, int]:
     """``(level, m)``: the Bonferroni level ``1 - alpha / m`` of each interval of a family whose
     ``m`` tested comparisons hold simultaneously at ``1 - alpha`` (1.0 and 0 when none is tested)."""
-    items = comparisons.values() if isinstance(comparisons, Mapping) else comparisons
-    m = sum(c.tested for c in items)
+    m = sum(c.tested for c in comparisons)
     return (1.0 - alpha / m if m else 1.0), m
 
 
