@@ -129,3 +129,29 @@ def test_glue_table_names_each_value_by_row_and_column(monkeypatch):
     assert seen["cv_roll_vs_kf_verdict"] == table.loc["roll_vs_kf", "verdict"]
     assert seen["cv_roll_vs_kf_change_pct"] == pytest.approx(table.loc["roll_vs_kf", "change_pct"])
     assert isinstance(seen["cv_roll_vs_kf_n"], int) and seen["cv_roll_vs_kf_a_lower"] == "3 of 3"
+
+
+def test_a_row_may_carry_its_own_goal():
+    rows = {"oxiod": ("a against b", "roll", compare([0.8, 0.85, 0.82, 0.84], [1.0, 1.0, 1.0, 1.0])),
+            "broad": ("a against b", "total", compare([0.95, 0.96, 0.97, 0.95], [1.0, 1.0, 1.0, 1.0]))}
+    table = verdict_table(rows, goal_pct=-10, goals={"broad": 0.0})
+    assert table.loc["oxiod", "verdict"] == "goal met"      # about -17 %, interval below -10 %
+    assert table.loc["broad", "verdict"] == "goal met"      # about -4 %, interval below 0
+    assert verdict_table(rows, goal_pct=-10).loc["broad", "verdict"] == "lower error, goal not met"
+    with pytest.raises(KeyError, match="nowhere"):
+        verdict_table(rows, goals={"nowhere": 0.0})
+
+
+def test_coverage_table_is_a_one_sample_t_of_coverage_minus_nominal():
+    from danae_lite.evaluate.comparison import coverage_table
+
+    cov = np.array([0.60, 0.55, 0.62, 0.58, 0.57])
+    table = coverage_table({"in": ("68 % interval", "roll", cov, 0.68),
+                            "few": ("68 % interval", "pitch", cov[:2], 0.68)})
+    assert table.attrs["m"] == 1 and table.loc["few", "verdict"] == "numbers only"
+    low, high = stats.ttest_1samp(100 * (cov - 0.68), 0.0).confidence_interval(0.95)
+    assert table.loc["in", ["low_pts", "high_pts"]].tolist() == pytest.approx([low, high], rel=1e-10)
+    assert table.loc["in", "mean_pct"] == pytest.approx(100 * cov.mean())
+    assert table.loc["in", "verdict"] == "covers less"
+    with pytest.raises(ValueError, match="row 'bad'"):
+        coverage_table({"bad": ("68 % interval", "roll", [0.5, 1.2, 0.6], 0.68)})

@@ -21,6 +21,9 @@ log scale, where a ratio of errors is a difference:
   "goal met" when the upper end lies below the goal. Counts (A lower on k of n units) are
   descriptive.
 
+* **Coverage** of error bars is no RMSE comparison: :func:`coverage_table` draws a one-sample t
+  over units of the share of samples inside an interval minus its nominal level.
+
 :func:`compare` draws one comparison from the RMSEs, :func:`verdict_table` the table of a family.
 """
 from __future__ import annotations
@@ -144,22 +147,71 @@ def family_level(comparisons: Sequence[Comparison], alpha: float = ALPHA) -> tup
 
 
 def verdict_table(rows: Mapping[str, tuple[str, str, Comparison]], *, goal_pct: float | None = None,
-                  no_harm_pct: float | None = None, alpha: float = ALPHA) -> pd.DataFrame:
+                  no_harm_pct: float | None = None, goals: Mapping[str, float] | None = None,
+                  alpha: float = ALPHA) -> pd.DataFrame:
     """The verdict table of one family: ``rows`` maps a row key (the index, and the glue names'
     stem) to ``(comparison, setting, Comparison)``, e.g. ``"roll_vs_kf": ("DANAE against the
     paper's KF", "roll, in-motion", compare(...))``. Columns :data:`COLUMNS`; every interval at
     the family's Bonferroni level (:func:`family_level`), which ``attrs`` holds as ``level`` and
-    ``m``, with ``alpha``, ``goal_pct`` and ``no_harm_pct``."""
+    ``m``, with ``alpha``, ``goal_pct`` and ``no_harm_pct``. ``goals`` maps a row key to that
+    row's own goal [%] in place of ``goal_pct`` (a table whose rows answer one question with
+    two targets, e.g. -10 % on one data set and any reduction, 0 %, on another)."""
     level, m = family_level([c for _, _, c in rows.values()], alpha)
+    unknown = set(goals or {}) - set(rows)
+    if unknown:
+        raise KeyError(f"goals for rows the table does not have: {sorted(unknown)}")
     records = []
     for key, (what, setting, c) in rows.items():
         low, high = c.interval(level)
+        goal = (goals or {}).get(key, goal_pct)
         records.append({"key": key, "comparison": what, "setting": setting, "test": c.test, "n": c.n,
                         "change_pct": c.change_pct, "low_pct": low, "high_pct": high,
                         "a_lower": "" if c.k is None else f"{c.k} of {c.n}",
-                        "verdict": verdict_words(low, high, goal_pct=goal_pct, no_harm_pct=no_harm_pct)})
+                        "verdict": verdict_words(low, high, goal_pct=goal, no_harm_pct=no_harm_pct)})
     table = pd.DataFrame(records, columns=["key", *COLUMNS]).set_index("key")
     table.attrs = {"level": level, "m": m, "alpha": alpha, "goal_pct": goal_pct, "no_harm_pct": no_harm_pct}
+    return table
+
+
+COVERAGE_COLUMNS = ("comparison", "setting", "test", "n", "nominal_pct", "mean_pct", "low_pts", "high_pts",
+                    "verdict")
+"""Columns of :func:`coverage_table`: the interval's ``nominal_pct`` coverage, the mean coverage
+``mean_pct`` over the units [%] and the interval ``low_pts``..``high_pts`` of its shortfall
+(mean - nominal) [percentage points]."""
+
+
+def coverage_table(rows: Mapping[str, tuple[str, str, ArrayLike, float]], *, alpha: float = ALPHA) -> pd.DataFrame:
+    """Do error bars cover what they claim? ``rows`` maps a row key to ``(comparison, setting,
+    coverage, nominal)``: the fraction of samples inside the interval on each unit (held-out
+    recording or trial), in [0, 1], and the interval's nominal coverage (e.g. 0.68). Per row a
+    one-sample t over the units of ``100 * (coverage - nominal)`` [percentage points], with
+    fewer than :data:`MIN_UNITS` units the numbers only; the intervals at the table's Bonferroni
+    level, as in :func:`verdict_table`. Verdicts: "covers less" (the interval lies below 0),
+    "covers more" (above), "no clear difference"; columns :data:`COVERAGE_COLUMNS`."""
+    diffs = {}
+    for key, (_, _, values, nominal) in rows.items():
+        v = np.asarray(values, dtype=float)
+        if v.ndim != 1 or not np.isfinite(v).all() or ((v < 0) | (v > 1)).any() or not 0 < nominal < 1:
+            raise ValueError(f"row {key!r}: expected coverage fractions in [0, 1] per unit and a nominal "
+                             f"level in (0, 1), got {v.tolist()} and {nominal!r}")
+        diffs[key] = 100.0 * (v - nominal)
+    m = sum(len(d) >= MIN_UNITS for d in diffs.values())
+    level = 1.0 - alpha / m if m else 1.0
+    records = []
+    for key, (what, setting, _, nominal) in rows.items():
+        d = diffs[key]
+        low = high = np.nan
+        if len(d) >= MIN_UNITS:
+            half = float(stats.t.ppf(0.5 + level / 2, len(d) - 1)) * d.std(ddof=1) / np.sqrt(len(d))
+            low, high = d.mean() - half, d.mean() + half
+        verdict = ("numbers only" if not np.isfinite(low) else "covers less" if high < 0
+                   else "covers more" if low > 0 else "no clear difference")
+        records.append({"key": key, "comparison": what, "setting": setting,
+                        "test": "one-sample t over units" if np.isfinite(low) else "numbers only",
+                        "n": len(d), "nominal_pct": 100.0 * nominal, "mean_pct": 100.0 * nominal + d.mean(),
+                        "low_pts": low, "high_pts": high, "verdict": verdict})
+    table = pd.DataFrame(records, columns=["key", *COVERAGE_COLUMNS]).set_index("key")
+    table.attrs = {"level": level, "m": m, "alpha": alpha}
     return table
 
 
@@ -175,8 +227,10 @@ def header(table: pd.DataFrame) -> str:
 
 
 def styled(table: pd.DataFrame) -> "pd.io.formats.style.Styler":
-    """``table`` (:func:`verdict_table`) for the reader: the interval as "low to high", the
-    header of :func:`header` as its caption, the row keys hidden."""
+    """``table`` (:func:`verdict_table` or :func:`coverage_table`) for the reader: the interval
+    as "low to high", the header of :func:`header` as its caption, the row keys hidden."""
+    if "nominal_pct" in table.columns:
+        return _styled_coverage(table)
     shown = table.assign(interval=[f"{lo:+.1f} to {hi:+.1f}" if np.isfinite(lo) else "—"
                                    for lo, hi in zip(table.low_pct, table.high_pct)])
     shown = shown[["comparison", "setting", "n", "change_pct", "interval", "a_lower", "verdict", "test"]]
@@ -184,3 +238,19 @@ def styled(table: pd.DataFrame) -> "pd.io.formats.style.Styler":
                                   "a_lower": "A lower on"})
     return (shown.style.format({"change [%]": "{:+.1f}"}).hide(axis="index")
             .set_caption(header(table)))
+
+
+def _styled_coverage(table: pd.DataFrame) -> "pd.io.formats.style.Styler":
+    shown = table.assign(interval=[f"{lo:+.1f} to {hi:+.1f}" if np.isfinite(lo) else "—"
+                                   for lo, hi in zip(table.low_pts, table.high_pts)])
+    shown = shown[["comparison", "setting", "n", "nominal_pct", "mean_pct", "interval", "verdict", "test"]]
+    shown = shown.rename(columns={"nominal_pct": "nominal [%]", "mean_pct": "covered [%]",
+                                  "interval": "covered - nominal [points]"})
+    level, m, alpha = table.attrs["level"], table.attrs["m"], table.attrs["alpha"]
+    each = f"{100 * level:.2f}".rstrip("0").rstrip(".")
+    caption = ("No row is tested: the numbers only." if m == 0 else
+               f"Mean share of samples inside the interval over the units [%]; the interval of "
+               f"covered - nominal simultaneous at {100 * (1 - alpha):g} % over the table's {m} "
+               f"tested rows (Bonferroni: each at {each} %).")
+    return (shown.style.format({"nominal [%]": "{:.0f}", "covered [%]": "{:.1f}"})
+            .hide(axis="index").set_caption(caption))
