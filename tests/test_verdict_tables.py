@@ -66,6 +66,7 @@ def test_each_stored_verdict_names_a_direction_exactly_when_its_interval_exclude
 def test_the_chapters_store_verdict_tables():
     stems = {p.stem: len(verdict_rows(glued(p))) for p in NOTEBOOKS}
     assert stems["05_baselines_leaderboard"] >= 8 and stems["06_cross_validation"] >= 20
+    assert stems["07_danae_res"] >= 40
 
 
 def test_the_check_finds_a_verdict_its_interval_contradicts():

@@ -35,6 +35,7 @@ from .features import (ANGLE_CHANNELS, CAUSAL_SETTINGS, MULTI_CHANNELS, from_cir
                        multi_input, research_config, run_network, to_circle)
 from .leaderboard import run_leaderboard
 from .methods import Context, Method, total_error_rmse
+from ..evaluate.comparison import compare
 from ..evaluate.metrics import reduction_pct
 from ..danae.networks import NetworkJob, network_jobs, train_networks
 from ..data.recording import Recording
@@ -218,8 +219,8 @@ def generalisation(scenarios: dict[str, Any], *, sources: tuple[str, ...] = ("pa
     side and evaluated on the test side (clean samples). Returns one row per pair, source and
     angle: the filter's RMSE, DANAE's RMSE (mean over seeds) and the gain [%]
     ``100 (1 - danae / filter)``; negative gain = the learned correction hurts;
-    ``danae_minus_filter``: DANAE's RMSE minus the filter's, one per seed [rad] (a tuple, for
-    :mod:`~danae_lite.research.verdicts`). ``jobs``: worker
+    ``comparison``: DANAE against its filter over the test recordings as units
+    (:func:`~danae_lite.evaluate.comparison.compare`). ``jobs``: worker
     processes for each pair's networks (:func:`~danae_lite.research.leaderboard.run_leaderboard`).
     """
     rows = []
@@ -232,7 +233,7 @@ def generalisation(scenarios: dict[str, Any], *, sources: tuple[str, ...] = ("pa
             for s in sources:
                 for angle in ("roll", "pitch", "yaw"):
                     f, d = float(w.loc[s, angle]), float(w.loc[f"danae[{s}]", angle])
-                    diffs = tuple(board.seed_rmse(f"danae[{s}]", angle) - f)
+                    paired = compare(board.recording_rmse(f"danae[{s}]", angle), board.recording_rmse(s, angle))
                     rows.append({"train": a, "test": b, "source": s, "angle": angle, "filter_rmse": f,
-                                 "danae_rmse": d, "gain_pct": reduction_pct(d, f), "danae_minus_filter": diffs})
+                                 "danae_rmse": d, "gain_pct": reduction_pct(d, f), "comparison": paired})
     return pd.DataFrame(rows)
