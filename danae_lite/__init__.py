@@ -70,7 +70,6 @@ part of the package: ``tools/``.
 * :mod:`~danae_lite.research.broad_benchmark`  the BROAD metric and the published figures
 * :mod:`~danae_lite.research.leaderboard`  every method on the same recordings and metrics
 * :mod:`~danae_lite.research.crossval`  folds: leave one recording out, transfer between motions, BROAD
-* :mod:`~danae_lite.research.verdicts`  the wording of a verdict drawn from a difference over seeds or recordings
 
 **Entry points**
 

@@ -155,3 +155,23 @@ def test_coverage_table_is_a_one_sample_t_of_coverage_minus_nominal():
     assert table.loc["in", "verdict"] == "covers less"
     with pytest.raises(ValueError, match="row 'bad'"):
         coverage_table({"bad": ("68 % interval", "roll", [0.5, 1.2, 0.6], 0.68)})
+
+
+def test_a_coverage_table_states_its_family_level_as_a_verdict_table_does():
+    from danae_lite.evaluate.comparison import coverage_table
+
+    cov = np.array([0.70, 0.66, 0.69, 0.71])
+    table = coverage_table({f"r{i}": ("95 % interval", "roll", cov, 0.68) for i in range(4)})
+    assert table.attrs["level"] == pytest.approx(1 - 0.05 / 4)
+    low, high = stats.ttest_1samp(100 * (cov - 0.68), 0.0).confidence_interval(1 - 0.05 / 4)
+    assert table.loc["r0", ["low_pts", "high_pts"]].tolist() == pytest.approx([low, high], rel=1e-10)
+    assert styled(table).caption.endswith("over the table's 4 tested rows (Bonferroni: each at 98.75 %).")
+
+
+@pytest.mark.parametrize("labels, key", [(("danae-multi[vqf]", "roll"), "danae_multi_vqf_roll"),
+                                         (("multi users",), "multi_users"),
+                                         (("the error as target", "pitch"), "the_error_as_target_pitch")])
+def test_a_row_key_is_a_glue_name_stem(labels, key):
+    from danae_lite.evaluate.comparison import row_key
+
+    assert row_key(*labels) == key

@@ -28,6 +28,7 @@ log scale, where a ratio of errors is a difference:
 """
 from __future__ import annotations
 
+import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 
@@ -74,10 +75,17 @@ class Comparison:
 
     def interval(self, level: float = 1 - ALPHA) -> tuple[float, float]:
         """The two-sided ``level`` t-interval of the change [%] (NaN, NaN for the numbers only)."""
-        if not self.tested:
-            return np.nan, np.nan
-        half = float(stats.t.ppf(0.5 + level / 2, self.df)) * self.se
-        return float(100.0 * np.expm1(self.mean - half)), float(100.0 * np.expm1(self.mean + half))
+        low, high = _t_interval(self.mean, self.se, self.df, level)
+        return float(100.0 * np.expm1(low)), float(100.0 * np.expm1(high))
+
+
+def _t_interval(mean: float, se: float, df: float, level: float) -> tuple[float, float]:
+    """The two-sided ``level`` t-interval ``mean ± t·se`` on the scale of ``mean`` (NaN, NaN when
+    ``df`` is NaN: the numbers only)."""
+    if not np.isfinite(df):
+        return np.nan, np.nan
+    half = float(stats.t.ppf(0.5 + level / 2, df)) * se
+    return mean - half, mean + half
 
 
 def _rmse_array(values: ArrayLike, name: str) -> np.ndarray:
@@ -146,6 +154,13 @@ def family_level(comparisons: Sequence[Comparison], alpha: float = ALPHA) -> tup
     return (1.0 - alpha / m if m else 1.0), m
 
 
+def row_key(*labels: str) -> str:
+    """A row key of :func:`verdict_table` (the stem of its glue names) from ``labels`` joined by
+    underscores, each run of characters other than letters, digits and underscores made one
+    underscore: ``row_key("danae-multi[vqf]", "roll")`` is ``"danae_multi_vqf_roll"``."""
+    return "_".join(re.sub(r"\W+", "_", label).strip("_") for label in labels)
+
+
 def verdict_table(rows: Mapping[str, tuple[str, str, Comparison]], *, goal_pct: float | None = None,
                   no_harm_pct: float | None = None, goals: Mapping[str, float] | None = None,
                   alpha: float = ALPHA) -> pd.DataFrame:
@@ -194,21 +209,18 @@ def coverage_table(rows: Mapping[str, tuple[str, str, ArrayLike, float]], *, alp
         if v.ndim != 1 or not np.isfinite(v).all() or ((v < 0) | (v > 1)).any() or not 0 < nominal < 1:
             raise ValueError(f"row {key!r}: expected coverage fractions in [0, 1] per unit and a nominal "
                              f"level in (0, 1), got {v.tolist()} and {nominal!r}")
-        diffs[key] = 100.0 * (v - nominal)
-    m = sum(len(d) >= MIN_UNITS for d in diffs.values())
-    level = 1.0 - alpha / m if m else 1.0
+        d = 100.0 * (v - nominal)
+        diffs[key] = (_one_sample("one-sample t over units", d, None) if len(d) >= MIN_UNITS else
+                      Comparison("numbers only", len(d), float(d.mean()), np.nan, np.nan, None))
+    level, m = family_level(list(diffs.values()), alpha)
     records = []
     for key, (what, setting, _, nominal) in rows.items():
-        d = diffs[key]
-        low = high = np.nan
-        if len(d) >= MIN_UNITS:
-            half = float(stats.t.ppf(0.5 + level / 2, len(d) - 1)) * d.std(ddof=1) / np.sqrt(len(d))
-            low, high = d.mean() - half, d.mean() + half
-        verdict = ("numbers only" if not np.isfinite(low) else "covers less" if high < 0
+        c = diffs[key]
+        low, high = _t_interval(c.mean, c.se, c.df, level)
+        verdict = ("numbers only" if not c.tested else "covers less" if high < 0
                    else "covers more" if low > 0 else "no clear difference")
-        records.append({"key": key, "comparison": what, "setting": setting,
-                        "test": "one-sample t over units" if np.isfinite(low) else "numbers only",
-                        "n": len(d), "nominal_pct": 100.0 * nominal, "mean_pct": 100.0 * nominal + d.mean(),
+        records.append({"key": key, "comparison": what, "setting": setting, "test": c.test, "n": c.n,
+                        "nominal_pct": 100.0 * nominal, "mean_pct": 100.0 * nominal + c.mean,
                         "low_pts": low, "high_pts": high, "verdict": verdict})
     table = pd.DataFrame(records, columns=["key", *COVERAGE_COLUMNS]).set_index("key")
     table.attrs = {"level": level, "m": m, "alpha": alpha}
@@ -217,12 +229,16 @@ def coverage_table(rows: Mapping[str, tuple[str, str, ArrayLike, float]], *, alp
 
 def header(table: pd.DataFrame) -> str:
     """One line saying at which level the intervals of ``table`` (:func:`verdict_table`) hold."""
+    return _caption(table, "Change of A's RMSE against B's [%] (negative: A has the lower error); intervals")
+
+
+def _caption(table: pd.DataFrame, what: str) -> str:
+    """``what`` (the table's values and its intervals), then the family level they hold at."""
     level, m, alpha = table.attrs["level"], table.attrs["m"], table.attrs["alpha"]
     if m == 0:
         return "No row is tested: the numbers only."
     each = f"{100 * level:.2f}".rstrip("0").rstrip(".")
-    return (f"Change of A's RMSE against B's [%] (negative: A has the lower error); intervals "
-            f"simultaneous at {100 * (1 - alpha):g} % over the table's {m} tested rows "
+    return (f"{what} simultaneous at {100 * (1 - alpha):g} % over the table's {m} tested rows "
             f"(Bonferroni: each at {each} %).")
 
 
@@ -246,11 +262,7 @@ def _styled_coverage(table: pd.DataFrame) -> "pd.io.formats.style.Styler":
     shown = shown[["comparison", "setting", "n", "nominal_pct", "mean_pct", "interval", "verdict", "test"]]
     shown = shown.rename(columns={"nominal_pct": "nominal [%]", "mean_pct": "covered [%]",
                                   "interval": "covered - nominal [points]"})
-    level, m, alpha = table.attrs["level"], table.attrs["m"], table.attrs["alpha"]
-    each = f"{100 * level:.2f}".rstrip("0").rstrip(".")
-    caption = ("No row is tested: the numbers only." if m == 0 else
-               f"Mean share of samples inside the interval over the units [%]; the interval of "
-               f"covered - nominal simultaneous at {100 * (1 - alpha):g} % over the table's {m} "
-               f"tested rows (Bonferroni: each at {each} %).")
+    caption = _caption(table, "Mean share of samples inside the interval over the units [%]; the "
+                              "interval of covered - nominal")
     return (shown.style.format({"nominal [%]": "{:.0f}", "covered [%]": "{:.1f}"})
             .hide(axis="index").set_caption(caption))
