@@ -302,12 +302,33 @@ def stamp(nb: MutableMapping[str, Any], *, seconds: float, data_dir: str | os.Pa
     return record
 
 
+KERNELSPEC = {"display_name": "Python 3 (ipykernel)", "language": "python", "name": "python3"}
+"""The kernelspec JupyterLab writes into a chapter it opens with the project's kernel."""
+
+
+def as_jupyterlab_saves(nb: MutableMapping[str, Any]) -> None:
+    """Set the metadata JupyterLab would rewrite on opening ``nb`` to what it writes, so that
+    reading a chapter leaves the tree clean: the kernelspec (:data:`KERNELSPEC`), and each cell's
+    ``collapsed``, which JupyterLab copies from ``jupyter.outputs_hidden``."""
+    nb.setdefault("metadata", {})["kernelspec"] = dict(KERNELSPEC)
+    for cell in nb.get("cells", []):
+        meta = cell.setdefault("metadata", {})
+        hidden = meta.get("jupyter", {}).get("outputs_hidden")
+        if hidden is None:
+            meta.pop("collapsed", None)
+        else:
+            meta["collapsed"] = bool(hidden)
+
+
 def _write_atomically(nb: Any, target: Path) -> None:
-    """Write ``nb`` (nbformat v4) to ``target`` through a temporary file in the same folder.
+    """Write ``nb`` (nbformat v4) to ``target`` through a temporary file in the same folder,
+    its metadata as JupyterLab saves it (:func:`as_jupyterlab_saves`).
 
     An interruption leaves either the old file or the new one, never half of one.
     """
     import nbformat
+
+    as_jupyterlab_saves(nb)
 
     tmp = target.with_name(f".{target.name}.{os.getpid()}.tmp")
     try:
