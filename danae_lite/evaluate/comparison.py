@@ -124,8 +124,12 @@ def compare(a: ArrayLike, b: ArrayLike) -> Comparison:
             return Comparison(TESTS[2], max(len(sa), len(sb)), float(sa.mean() - sb.mean()),
                               float(np.sqrt(va + vb)), float(df), None)
     d = la.mean(axis=1) - lb.mean(axis=1)  # (iv) the numbers only
-    return Comparison(TESTS[3], len(d), float(d.mean()), np.nan, np.nan,
-                      int((d < 0).sum()) if len(d) > 1 else None)
+    return _numbers_only(d, int((d < 0).sum()) if len(d) > 1 else None)
+
+
+def _numbers_only(d: np.ndarray, k: int | None) -> Comparison:
+    """The mean of ``d`` without a t: no interval, no verdict (too few units)."""
+    return Comparison(TESTS[3], len(d), float(d.mean()), np.nan, np.nan, k)
 
 
 def verdict_words(low: float, high: float, *, goal_pct: float | None = None,
@@ -210,8 +214,8 @@ def coverage_table(rows: Mapping[str, tuple[str, str, ArrayLike, float]], *, alp
             raise ValueError(f"row {key!r}: expected coverage fractions in [0, 1] per unit and a nominal "
                              f"level in (0, 1), got {v.tolist()} and {nominal!r}")
         d = 100.0 * (v - nominal)
-        diffs[key] = (_one_sample("one-sample t over units", d, None) if len(d) >= MIN_UNITS else
-                      Comparison("numbers only", len(d), float(d.mean()), np.nan, np.nan, None))
+        diffs[key] = (_one_sample("one-sample t over units", d, None) if len(d) >= MIN_UNITS
+                      else _numbers_only(d, None))
     level, m = family_level(list(diffs.values()), alpha)
     records = []
     for key, (what, setting, _, nominal) in rows.items():
