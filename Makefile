@@ -44,7 +44,7 @@ execute: $(STAMP)
 	DANAE_JOBS=$${DANAE_JOBS:-$(EXEC_JOBS)} $(BIN)/python -m tools.execute $(ARGS)
 
 test: $(STAMP)
-	DANAE_FAST=$${DANAE_FAST:-1} OMP_NUM_THREADS=$${OMP_NUM_THREADS:-1} $(BIN)/python -m pytest -n $(JOBS) --dist loadfile --no-loadscope-reorder tests notebooks --nbmake --nbmake-timeout=600
+	DANAE_FAST=$${DANAE_FAST:-1} OMP_NUM_THREADS=$${OMP_NUM_THREADS:-1} $(BIN)/python -m pytest -n $(JOBS) --dist loadfile --no-loadscope-reorder tests notebooks --nbmake --nbmake-timeout=600 --durations=15
 
 unit: $(STAMP)
 	OMP_NUM_THREADS=$${OMP_NUM_THREADS:-1} $(BIN)/python -m pytest -n $(JOBS) tests

@@ -32,6 +32,7 @@ The command that re-executes the chapters and stores their outputs is
 from __future__ import annotations
 
 import re
+import string
 from typing import Any
 
 from .danae.seeding import seed_everything
@@ -60,30 +61,38 @@ def setup(seed: int = DEFAULT_SEED, *, verbose: bool = True) -> RunSettings:
         use_scheduler(cfg.scheduler)
     if verbose:
         mode = "FAST (DANAE_FAST=1: reduced steps, data and seeds)" if cfg.fast else "full"
-        data = f"{cfg.data_dir}" if cfg.data_dir else "not set (DANAE_DATA unset): the simulator stands in"
+        data = "$DANAE_DATA" if cfg.data_dir else "none (DANAE_DATA unset): the simulator stands in"
         workers = f"Dask cluster {cfg.scheduler}" if cfg.scheduler else f"{cfg.jobs} worker process(es)"
-        print(f"mode: {mode} | data: {data} | seed: {cfg.seed} | device: {cfg.device} ({workers})")
+        print(f"mode: {mode}\ndata: {data} | seed: {cfg.seed} | device: {cfg.device} ({workers})")
     return cfg
 
 
 def glue(name: str, value: Any, display: bool = False) -> None:
     """Record ``value`` under ``name`` for :func:`prose` and in the stored outputs (myst-nb's
     ``glue``: an output the book and JupyterLab do not show unless ``display``). A Markdown
-    object is remembered as its Markdown text."""
+    object is remembered as its Markdown text; a NumPy scalar is glued as the Python number it
+    holds (so that the record reads ``0.5``, not ``np.float64(0.5)``)."""
     from myst_nb import glue as myst_glue
 
+    if getattr(value, "ndim", None) == 0 and hasattr(value, "item"):
+        value = value.item()
     markdown = getattr(value, "_repr_markdown_", None)
     _RECORDED[name] = markdown() if callable(markdown) else value
     myst_glue(name, value, display=display)
 
 
 def glue_table(prefix: str, table: Any) -> None:
-    """Glue every cell of the DataFrame ``table`` under ``{prefix}_{row}_{column}`` (row and
-    column labels as they are, spaces as underscores), so that prose and other pages quote a
-    table's values by one name each, all recorded by one call (numbers and text as they are,
-    so that a page quotes either with ``{glue:text}``)."""
-    for (row, column), value in table.stack(future_stack=True).items():
-        glue(f"{prefix}_{row}_{column}".replace(" ", "_"), value.item() if hasattr(value, "item") else value)
+    """Glue every cell of the DataFrame ``table`` under ``{prefix}_{row}_{column}``, or every
+    value of the Series ``table`` under ``{prefix}_{label}`` (each run of characters other than
+    ASCII letters and digits in a label as one underscore, none at its ends: ``"all (preset)"``
+    gives ``all_preset``), so that prose and other pages quote a table's values by one name each,
+    all recorded by one call (numbers and text as they are, so that a page quotes either with
+    ``{glue:text}``)."""
+    items = table.items() if table.ndim == 1 else (
+        (f"{row}_{column}", value) for (row, column), value in table.stack(future_stack=True).items())
+    for label, value in items:
+        name = f"{prefix}_{re.sub(r'[^0-9A-Za-z]+', '_', str(label)).strip('_')}"
+        glue(name, value.item() if hasattr(value, "item") else value)
 
 
 def fill(template: str, values: dict[str, Any]) -> str:
@@ -98,9 +107,32 @@ def fill(template: str, values: dict[str, Any]) -> str:
     return "".join(parts)
 
 
+class _ReadingFormatter(string.Formatter):
+    """Python's format mini-language, with numbers written for reading: no minus sign on a
+    value that rounds to zero (``-0.0`` reads as ``0.0``) and powers of ten instead of
+    exponent notation (``5e-07`` reads as ``5 × 10⁻⁷``, ``0.0e+00`` as ``0``)."""
+
+    def format_field(self, value: Any, format_spec: str) -> str:
+        text = format(value, format_spec)
+        if not isinstance(value, (int, float)) or isinstance(value, bool):
+            return text
+        if re.fullmatch(r"\s*-0(\.0*)?%?\s*", text):
+            return text.replace("-", "", 1)
+        power = re.fullmatch(r"([+-]?[\d.]+)e([+-]\d+)", text.strip())
+        if power and float(power.group(1)) == 0:
+            return "0"
+        if power:
+            mantissa, exponent = power.group(1), int(power.group(2))
+            return f"{mantissa} × 10{str(exponent).translate(_SUPERSCRIPT)}"
+        return text
+
+
+_SUPERSCRIPT = str.maketrans("-0123456789", "⁻⁰¹²³⁴⁵⁶⁷⁸⁹")
+
+
 def _fill_plain(text: str, values: dict[str, Any]) -> str:
     try:
-        return text.format_map(values)
+        return _ReadingFormatter().vformat(text, (), values)
     except KeyError as err:
         raise KeyError(f"prose: no value glued under the name {err.args[0]!r} (glue it in an "
                        f"earlier cell); in {text.strip()[:80]!r}") from None

@@ -1,6 +1,8 @@
 """danae_lite.book.glue / prose / fill: how a chapter's sentences quote its results."""
 import math
 
+import numpy as np
+
 import pytest
 from IPython.display import Markdown
 
@@ -13,8 +15,15 @@ def test_fill_formats_fields_with_python_format_specs():
     values = {"gain": 0.62213, "n": 1234, "change": -3.25, "name": "VQF"}
     text = "gain {gain:.3f}, {n:,} samples, {change:+.1f} %, {name}; {{literal}}"
     assert book.fill(text, values) == "gain 0.622, 1,234 samples, -3.2 %, VQF; {literal}"
-    # the same as Python's own str.format: fill adds no formatting rules of its own
+    # the same as Python's own str.format where the number reads well as it is
     assert book.fill(text, values) == text.format(**values)
+
+
+def test_fill_writes_numbers_for_reading():
+    # no sign on a value that rounds to zero, powers of ten instead of exponent notation
+    values = {"tiny": -0.004, "pct": -1e-5, "small": 5e-07, "big": 3.2e12, "word": "-0", "zero": 0.0}
+    text = "{tiny:.2f}, {pct:.1%}, {small:.0e}, {small:.2g}, {big:.1e}, {tiny:+.3f}, {word}, {zero:.1e}"
+    assert book.fill(text, values) == "0.00, 0.0%, 5 × 10⁻⁷, 5 × 10⁻⁷, 3.2 × 10¹², -0.004, -0, 0"
 
 
 def test_fill_keeps_maths_and_code_as_written():
@@ -76,4 +85,6 @@ def test_prose_glues_the_values_it_is_given_and_fills_them(monkeypatch):
     assert [g[0] for g in glued] == ["ch9_earlier", "ch9_new", "ch9_word"] and not any(g[2] for g in glued)
     assert shown[-1].data == "2 then 0.2 and *x*"                      # round half to even
     assert book._RECORDED["ch9_new"] == 0.25
+    book.glue("ch9_numpy", np.float64(0.5))                  # a NumPy scalar: its Python number
+    assert type(glued[-1][1]) is float and type(book._RECORDED["ch9_numpy"]) is float
     book._RECORDED.clear()

@@ -1,5 +1,6 @@
 """The paired comparison (danae_lite.evaluate.comparison) against SciPy's t-tests and closed forms."""
 import numpy as np
+import pandas as pd
 import pytest
 from scipy import stats
 
@@ -129,6 +130,11 @@ def test_glue_table_names_each_value_by_row_and_column(monkeypatch):
     assert seen["cv_roll_vs_kf_verdict"] == table.loc["roll_vs_kf", "verdict"]
     assert seen["cv_roll_vs_kf_change_pct"] == pytest.approx(table.loc["roll_vs_kf", "change_pct"])
     assert isinstance(seen["cv_roll_vs_kf_n"], int) and seen["cv_roll_vs_kf_a_lower"] == "3 of 3"
+    seen.clear()
+    book.glue_table("ch9", table.loc["roll_vs_kf"])            # a Series: one name per label
+    assert seen["ch9_verdict"] == table.loc["roll_vs_kf", "verdict"] and isinstance(seen["ch9_n"], int)
+    book.glue_table("ch9", pd.DataFrame({"roll [rad]": [0.5]}, index=["all (preset)"]))
+    assert seen["ch9_all_preset_roll_rad"] == 0.5                   # labels as identifiers
 
 
 def test_a_row_may_carry_its_own_goal():

@@ -24,8 +24,9 @@ def test_real_oxiod_split(tmp_oxiod, capsys):
     assert [r.name for r in exp.train] == ["handheld/data1/imu3", "handheld/data1/imu4", "handheld/data1/imu7"]
     assert [r.name for r in exp.test] == ["handheld/data1/imu2"]
     np.testing.assert_array_equal(exp.test[0].quat, tmp_oxiod.vi[2][:, 5:9])
-    assert str(tmp_oxiod.root) in exp.note and "test imu2" in exp.note and "slow-walking" in exp.note
-    assert capsys.readouterr().out.strip() == exp.note
+    assert exp.source == "real OxIOD data" and "<data dir>/oxiod:" in exp.note and str(tmp_oxiod.root) not in exp.note and "test imu2" in exp.note and "slow-walking" in exp.note
+    printed = capsys.readouterr().out
+    assert " ".join(printed.split()) == exp.note and max(map(len, printed.splitlines())) <= 88
 
 
 def test_real_oxiod_from_environment_through_the_settings(tmp_oxiod, monkeypatch, capsys):
@@ -61,8 +62,9 @@ def test_real_ucs_split(tmp_path, capsys):
     exp = load_experiment("ucs", tmp_path, fast=True)
     assert (exp.name, exp.data) == ("ucs", "real")
     assert [len(r) for r in exp.train + exp.test] == [240, 60]  # fast mode keeps UCS whole
-    assert str(path) in exp.note and "80%" in exp.note
-    assert capsys.readouterr().out.strip() == exp.note
+    assert "<data dir>/ucs/full_dataset/imu_adis.txt" in exp.note and "80%" in exp.note
+    printed = capsys.readouterr().out
+    assert " ".join(printed.split()) == exp.note and max(map(len, printed.splitlines())) <= 88
 
 
 def test_ucs_folder_without_file_raises(tmp_path):
@@ -97,7 +99,8 @@ def test_simulated_oxiod_when_no_data(capsys):
     reference = simulate("handheld", duration=experiments.FAST_DURATION["handheld"], seed=4)
     np.testing.assert_array_equal(exp.train[0].gyro, reference.gyro)
     assert "(no data directory given)" in exp.note and "handheld simulator stands in" in exp.note
-    assert capsys.readouterr().out.strip() == exp.note
+    printed = capsys.readouterr().out
+    assert " ".join(printed.split()) == exp.note and max(map(len, printed.splitlines())) <= 88
 
 
 def test_simulated_full_length_outside_fast_mode():
@@ -116,7 +119,7 @@ def test_simulated_ucs_in_empty_data_dir(tmp_path):
     full = simulate("underwater", duration=experiments.FAST_DURATION["underwater"], seed=0)
     np.testing.assert_array_equal(np.r_[train.acc, test.acc], full.acc)
     np.testing.assert_array_equal(test.meta["true_acc"], full.meta["true_acc"][len(train):])
-    assert f"under {tmp_path}" in exp.note and "underwater simulator" in exp.note
+    assert exp.source == "the simulator standing in for UCS" and "under <data dir>" in exp.note and str(tmp_path) not in exp.note and "underwater simulator" in exp.note
 
 
 def test_unknown_experiment():

@@ -82,3 +82,100 @@ def test_the_executor_writes_what_jupyterlab_saves():
           "cells": [{"metadata": dict(hidden)}, {"metadata": {"collapsed": False}}, {"metadata": {}}]}
     as_jupyterlab_saves(nb)
     assert jupyterlab_changes(nb) == []
+
+
+# ---- what the HTML page shows of a cell ----------------------------------------------------
+
+def empty_toggles(notebook: dict) -> list[str]:
+    """'cell N' for each cell whose input the book folds behind a "Show code cell source"
+    toggle (``hide-input``) but that shows no output: the reader opens a toggle beside nothing.
+    Glue records are not shown, so they do not count as output."""
+    return [f"cell {i}" for i, c in enumerate(notebook["cells"])
+            if c["cell_type"] == "code" and "hide-input" in c.get("metadata", {}).get("tags", [])
+            and not any(not any(k.startswith("application/papermill.record/") for k in o.get("data", {}))
+                        for o in c.get("outputs", []))]
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_no_toggle_folds_a_cell_that_shows_nothing(path):
+    found = empty_toggles(json.loads(path.read_text()))
+    assert not found, (f"{path.name}: hide-input cells with no visible output (an empty toggle "
+                       f"on the page; tag them remove-input): {found}")
+
+
+def test_a_planted_empty_toggle_is_found():
+    glue_only = {"output_type": "display_data", "metadata": {},
+                 "data": {"application/papermill.record/text/plain": "0.5"}}
+    shown = {"output_type": "stream", "name": "stdout", "text": "0.5\n"}
+    cells = [{"cell_type": "code", "metadata": {"tags": ["hide-input"]}, "source": "", "outputs": o}
+             for o in ([glue_only], [glue_only, shown], [])]
+    assert empty_toggles({"cells": cells}) == ["cell 0", "cell 2"]
+
+
+MAX_OUTPUT_LINE = 88
+"""Characters of a printed line that fit a code block of the HTML page, as code lines do."""
+
+
+def long_output_lines(notebook: dict) -> list[str]:
+    """'cell N: length' for each printed line (a stream, or a plain-text result shown as such)
+    longer than :data:`MAX_OUTPUT_LINE`: the page scrolls it sideways and the reader misses its
+    end. Tables, figures and Markdown have their own layout and are not counted."""
+    found = []
+    for i, c in enumerate(notebook["cells"]):
+        if c["cell_type"] != "code" or {"remove-output", "remove-cell"} & set(c.get("metadata", {}).get("tags", [])):
+            continue
+        for o in c.get("outputs", []):
+            data = o.get("data", {})
+            if o.get("output_type") == "stream":
+                text = "".join(o["text"])
+            elif set(data) == {"text/plain"}:
+                text = "".join(data["text/plain"])
+            else:
+                continue
+            found += [f"cell {i}: {len(line)}" for line in text.splitlines() if len(line) > MAX_OUTPUT_LINE]
+    return found
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_no_printed_line_runs_off_its_block(path):
+    found = long_output_lines(json.loads(path.read_text()))
+    assert not found, (f"{path.name}: printed lines longer than {MAX_OUTPUT_LINE} characters (wrap "
+                       f"them where they carry a point): {found}")
+
+
+def test_a_planted_long_output_line_is_found():
+    long, short = "x" * (MAX_OUTPUT_LINE + 1), "y" * MAX_OUTPUT_LINE
+    cells = [{"cell_type": "code", "metadata": {}, "source": "", "outputs": [
+        {"output_type": "stream", "name": "stdout", "text": [short + "\n", long + "\n"]},
+        {"output_type": "execute_result", "metadata": {}, "data": {"text/plain": long}},
+        {"output_type": "execute_result", "metadata": {}, "data": {"text/plain": long, "text/html": "<table/>"}}]},
+        {"cell_type": "code", "metadata": {"tags": ["remove-output"]}, "source": "", "outputs": [
+            {"output_type": "stream", "name": "stdout", "text": long}]}]
+    assert long_output_lines({"cells": cells}) == [f"cell 0: {MAX_OUTPUT_LINE + 1}"] * 2
+
+
+ABSOLUTE_PATH = re.compile(r"(?<![\w.:/])/(?:[\w.-]+/)+[\w.-]*")
+"""A folder of the machine that ran a chapter (``/home/me/data/oxiod``), not a URL or a unit."""
+
+
+def absolute_paths(notebook: dict) -> list[str]:
+    """The absolute paths the stored outputs print: the data folder is named ``<data dir>``
+    (``$DANAE_DATA``), whatever machine executed the chapter."""
+    found = []
+    for c in notebook["cells"]:
+        for o in c.get("outputs", []):
+            texts = [o.get("text", "")] + [v for k, v in o.get("data", {}).items() if k.startswith("text/")]
+            found += ABSOLUTE_PATH.findall("".join("".join(t) if isinstance(t, list) else t for t in texts))
+    return found
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_no_output_names_a_folder_of_the_machine_that_ran_it(path):
+    found = absolute_paths(json.loads(path.read_text()))
+    assert not found, f"{path.name}: outputs print absolute paths: {sorted(set(found))}"
+
+
+def test_a_planted_absolute_path_is_found():
+    out = {"output_type": "stream", "name": "stdout",
+           "text": "Real OxIOD from /home/me/data/oxiod: see https://x.org/a/b, 3 rad/s/√s, <data dir>/ucs"}
+    assert absolute_paths({"cells": [{"cell_type": "code", "outputs": [out]}]}) == ["/home/me/data/oxiod"]

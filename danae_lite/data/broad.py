@@ -442,7 +442,7 @@ def _real_experiment(folder: Path, fast: bool) -> experiments.Experiment:
         raise DataError(f"{folder}: found {len(train)} trial(s) of the group {TRAIN_GROUP!r} and {len(test)} of "
                         f"{TEST_GROUP!r} (from trials.json); both are needed for the default split")
     cut = f" (fast mode: the first {FAST_TRIALS} trials of each group, first {FAST_SAMPLES} samples each)" if fast else ""
-    note = (f"Real BROAD from {folder}: train the {len(train)} {TRAIN_GROUP} trials, test the {len(test)} "
+    note = (f"Real BROAD from {experiments.in_data_dir(folder)}: train the {len(train)} {TRAIN_GROUP} trials, test the {len(test)} "
             f"{TEST_GROUP} trials{cut}. BROAD: Laidig, Caruso, Cereatti, Seel, Data 6(7), 2021 (CC BY 4.0).")
     return experiments.Experiment("broad", "real", train, test, note, aligned=True)
 
@@ -453,7 +453,7 @@ def simulated_experiment(*, fast: bool = False, seed: int = 0, verbose: bool = T
     sim = experiments.simulated_experiment("oxiod", fast=fast, seed=seed, verbose=False)
     exp = experiments.Experiment("broad", "simulated", sim.train, sim.test, sim.note)
     if verbose:
-        print(exp.note)
+        experiments.print_note(exp.note)
     return exp
 
 
@@ -477,5 +477,5 @@ def load_experiment(data_dir: str | os.PathLike[str] | None = None, *, fast: boo
         exp = simulated_experiment(fast=fast, seed=seed, verbose=False)
         exp.note = exp.note.replace("Simulated: ", f"No real BROAD data found {experiments.where(base)}: ", 1)
     if verbose:
-        print(exp.note)
+        experiments.print_note(exp.note)
     return exp

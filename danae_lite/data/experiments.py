@@ -25,6 +25,7 @@ datasets, the OxIOD motions and BROAD, are found by :mod:`danae_lite.data.oxiod_
 from __future__ import annotations
 
 import os
+import textwrap
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -66,6 +67,13 @@ class Experiment:
     note: str
     aligned: bool = False
 
+    @property
+    def source(self) -> str:
+        """The data in a few words, as a caption or a sentence names it: ``"real OxIOD data"``
+        or ``"the simulator standing in for OxIOD"``."""
+        dataset = {**NAMES, "broad": "BROAD"}.get(self.name, self.name)
+        return f"real {dataset} data" if self.data == "real" else f"the simulator standing in for {dataset}"
+
 
 def existing_dir(path: str | os.PathLike[str] | None) -> Path | None:
     """``path`` resolved, or None for None. A path that is not a directory raises
@@ -94,9 +102,25 @@ def oxiod_root(data_dir: str | os.PathLike[str] | None = None) -> Path | None:
     return base / "oxiod" if base is not None and (base / "oxiod").is_dir() else None
 
 
+DATA_DIR_NAME = "<data dir>"
+"""How notes name the data directory ($DANAE_DATA, or the command line's --data-dir): never by
+the path it has on the machine that ran them."""
+
+
 def where(base: Path | None) -> str:
-    """How a note names the data directory: ``under <base>``, or that none was given."""
-    return "(no data directory given)" if base is None else f"under {base}"
+    """How a note names the data directory: ``under <data dir>``, or that none was given."""
+    return "(no data directory given)" if base is None else f"under {DATA_DIR_NAME}"
+
+
+def print_note(note: str) -> None:
+    """Print an experiment's note for people, wrapped at 88 characters (a code block's width)."""
+    print(textwrap.fill(note, width=88))
+
+
+def in_data_dir(path: Path, *parts: str) -> str:
+    """``path``, a folder of the data directory, as a note writes it: ``<data dir>/<name>``
+    followed by ``parts``."""
+    return "/".join([DATA_DIR_NAME, path.name, *parts])
 
 
 def _real_oxiod(root: Path, fast: bool) -> Experiment:
@@ -109,7 +133,7 @@ def _real_oxiod(root: Path, fast: bool) -> Experiment:
 
     train, test = (load_oxiod_files([syn / f"imu{k}.csv" for k in ks], fast) for ks in (OXIOD_TRAIN, OXIOD_TEST))
     cut = fast_note(fast, FAST_SAMPLES)
-    note = (f"Real OxIOD from {root}: train {', '.join(f'imu{k}' for k in OXIOD_TRAIN)}; test "
+    note = (f"Real OxIOD from {in_data_dir(root)}: train {', '.join(f'imu{k}' for k in OXIOD_TRAIN)}; test "
             f"{', '.join(f'imu{k}' for k in OXIOD_TEST)} of {'/'.join(OXIOD_FOLDER)}{cut}; the paper's "
             "slow-walking set is not available, so handheld/data1 stands in for it.")
     return Experiment("oxiod", "real", train, test, note)
@@ -121,7 +145,7 @@ def _real_ucs(folder: Path) -> Experiment:
         raise DataError(f"{folder} exists but lacks {path}; expected the UCS layout "
                         "<ucs>/full_dataset/imu_adis.txt")
     train, test = ucs.split_train_test(ucs.load_recording(path), TRAIN_FRACTION)
-    note = (f"Real UCS from {path}: first {TRAIN_FRACTION:.0%} ({len(train)} samples) train, "
+    note = (f"Real UCS from {in_data_dir(folder, *UCS_RELPATH.parts)}: first {TRAIN_FRACTION:.0%} ({len(train)} samples) train, "
             f"last {1 - TRAIN_FRACTION:.0%} ({len(test)} samples) test.")
     return Experiment("ucs", "real", [train], [test], note)
 
@@ -157,7 +181,7 @@ def load_experiment(name: str = "oxiod", data_dir: str | os.PathLike[str] | None
     else:
         exp = _real_oxiod(folder, fast) if name == "oxiod" else _real_ucs(folder)
     if verbose:
-        print(exp.note)
+        print_note(exp.note)
     return exp
 
 
@@ -174,7 +198,7 @@ def simulated_experiment(name: str = "oxiod", *, fast: bool = False, seed: int =
         raise ValueError(f"tests must be at least 1, got {tests}")
     exp = _simulated(name, "Simulated: ", fast, seed, tests)
     if verbose:
-        print(exp.note)
+        print_note(exp.note)
     return exp
 
 

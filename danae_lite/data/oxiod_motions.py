@@ -76,9 +76,9 @@ def load(data_dir: str | os.PathLike[str] | None = None, *, fast: bool = False, 
             out[motion] = experiments.load_oxiod_files([syn / f"imu{k}.csv" for k in ks], fast)
         cut = (f" (fast mode: at most {FAST_MOTION_RECORDINGS} recordings per motion, first {experiments.FAST_SAMPLES} "
                "samples each)") if fast else ""
-        note = ("Real OxIOD from " + str(root) + ": " + "; ".join(f"{m} {len(v)} recordings" for m, v in out.items())
+        note = ("Real OxIOD from " + experiments.in_data_dir(root) + ": " + "; ".join(f"{m} {len(v)} recordings" for m, v in out.items())
                 + cut + ".")
         result = Motions("real", out, note)
     if verbose:
-        print(result.note)
+        experiments.print_note(result.note)
     return result
