@@ -22,7 +22,7 @@ prose, so that the number reads the same in the HTML book and in JupyterLab:
 
 and :func:`glue_table`, which glues every value of a table (a verdict table of
 :mod:`danae_lite.evaluate.comparison`) by one call, and :func:`show_figure`, which shows a
-figure with its numbered caption as outputs of the cell, so that the HTML book and JupyterLab
+figure with its numbered caption and the data it is drawn from as outputs of the cell, so that the HTML book and JupyterLab
 both show the caption under the figure (its alt text is the cell's ``mystnb.image.alt``
 metadata).
 
@@ -153,15 +153,19 @@ def prose(template: str, **values: Any) -> None:
     display(Markdown(fill(template.strip("\n"), _RECORDED)))
 
 
-def show_figure(fig: Any, label: str, caption: str) -> None:
-    """Display the Matplotlib figure ``fig``, then its caption, ``*label — caption*`` (e.g.
-    ``label="Figure 2.1"``), as a Markdown output right under it, and close the figure so that
-    it is not shown twice."""
+def show_figure(fig: Any, label: str, caption: str, *, data: str) -> None:
+    """Display the Matplotlib figure ``fig``, then its caption, ``*label — caption Data: data.*``
+    (e.g. ``label="Figure 2.1"``, ``data=exp.source``), as a Markdown output right under it,
+    and close the figure so that it is not shown twice. ``data`` names what the figure is drawn
+    from, as the run found it (:attr:`danae_lite.data.experiments.Experiment.source`, or e.g.
+    ``"the handheld simulator"``), so that the caption stays true without the real data."""
     import matplotlib.pyplot as plt
     from IPython.display import Markdown, display
 
     if not re.fullmatch(r"Figure \d+\.\d+", label):
         raise ValueError(f"show_figure: label {label!r} is not 'Figure N.K'")
+    if not data.strip():
+        raise ValueError(f"show_figure: {label} names no data (data='...')")
     display(fig)
-    display(Markdown(f"*{label} — {caption.strip()}*"))
+    display(Markdown(f"*{label} — {caption.strip()} Data: {data.strip()}.*"))
     plt.close(fig)

@@ -66,12 +66,14 @@ def test_show_figure_displays_the_figure_then_its_caption_and_closes_it(monkeypa
     shown = []
     monkeypatch.setattr("IPython.display.display", lambda obj, **kw: shown.append(obj))
     fig, ax = plt.subplots()
-    book.show_figure(fig, "Figure 2.3", " The KF's roll against the truth. ")
+    book.show_figure(fig, "Figure 2.3", " The KF's roll against the truth. ", data="real OxIOD data")
     assert shown[0] is fig and isinstance(shown[1], Markdown)
-    assert shown[1].data == "*Figure 2.3 — The KF's roll against the truth.*"
+    assert shown[1].data == "*Figure 2.3 — The KF's roll against the truth. Data: real OxIOD data.*"
     assert not plt.fignum_exists(fig.number)
     with pytest.raises(ValueError, match="'Fig. 2' is not 'Figure N.K'"):
-        book.show_figure(plt.figure(), "Fig. 2", "x")
+        book.show_figure(plt.figure(), "Fig. 2", "x", data="y")
+    with pytest.raises(ValueError, match="Figure 2.4 names no data"):
+        book.show_figure(plt.figure(), "Figure 2.4", "x", data=" ")
     plt.close("all")
 
 

@@ -157,3 +157,11 @@ def test_more_simulated_test_recordings_leave_the_training_recordings_as_they_ar
     assert not np.allclose(five.test[1].acc[:50], five.test[2].acc[:50])   # independent draws
     with pytest.raises(ValueError, match="at least 1"):
         simulated_experiment(name, fast=True, tests=0, verbose=False)
+
+
+def test_captions_name_the_data_as_it_was_read():
+    from danae_lite.data import experiments, oxiod_motions
+
+    assert experiments.source_of("broad", "real") == "real BROAD data"
+    assert experiments.source_of("ucs", "simulated") == "the simulator standing in for UCS"
+    assert oxiod_motions.Motions("simulated", {}, "").source == "the simulator standing in for OxIOD"

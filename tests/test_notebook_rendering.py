@@ -179,3 +179,77 @@ def test_a_planted_absolute_path_is_found():
     out = {"output_type": "stream", "name": "stdout",
            "text": "Real OxIOD from /home/me/data/oxiod: see https://x.org/a/b, 3 rad/s/√s, <data dir>/ucs"}
     assert absolute_paths({"cells": [{"cell_type": "code", "outputs": [out]}]}) == ["/home/me/data/oxiod"]
+
+
+# ---- captions name their data, as the run found it ------------------------------------------
+
+CAPTION_DATA = re.compile(r"^\*Figure \d+\.\d+ — .* Data: (?P<data>[^*]+)\.\*$", re.S)
+TYPED_REAL = re.compile(r"\breal\b", re.I)
+
+
+def caption_problems(notebook: dict) -> list[str]:
+    """What is wrong with the data a chapter's figures name: each caption (``show_figure``'s
+    ``*Figure N.K — ... Data: ....*``) names its data, a run without the real data
+    (``metadata.danae.execution.data`` not ``"real"``) names none as real, and neither the
+    typed caption nor the alt text says "real" (that is the run's to say, through ``data=``)."""
+    record = notebook.get("metadata", {}).get("danae", {}).get("execution", {})
+    problems = []
+    for i, c in enumerate(notebook["cells"]):
+        if c["cell_type"] != "code":
+            continue
+        for o in c.get("outputs", []):
+            text = "".join(o.get("data", {}).get("text/markdown", "")).strip()
+            if not text.startswith("*Figure "):
+                continue
+            m = CAPTION_DATA.match(text)
+            if not m:
+                problems.append(f"cell {i}: a caption without 'Data: ...': {text[:60]!r}")
+            elif record.get("data") != "real" and m["data"].startswith("real"):
+                problems.append(f"cell {i}: names real data on a {record.get('data')} run: {m['data']!r}")
+        source = "".join(c["source"])
+        typed = [call.split("data=")[0] for call in re.findall(r"show_figure\(.*?\)\s*$", source, re.S | re.M)]
+        alt = c.get("metadata", {}).get("mystnb", {}).get("image", {}).get("alt", "")
+        if any(TYPED_REAL.search(t) for t in typed + [alt]):
+            problems.append(f"cell {i}: its typed caption or alt text says 'real'")
+    return problems
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_every_caption_names_the_data_its_run_found(path):
+    problems = caption_problems(json.loads(path.read_text()))
+    assert not problems, f"{path.name}:\n" + "\n".join(problems)
+
+
+def test_planted_caption_defects_are_found():
+    def figure(caption: str, alt: str = "a plot of the roll error over one minute") -> dict:
+        return {"cell_type": "code", "metadata": {"mystnb": {"image": {"alt": alt}}},
+                "source": 'show_figure(fig, "Figure 1.1", "roll", data=exp.source)',
+                "outputs": [{"output_type": "display_data", "data": {"text/markdown": caption}}]}
+    run = {"danae": {"execution": {"data": "simulated"}}}
+    cells = [figure("*Figure 1.1 — Roll. Data: the simulator standing in for OxIOD.*"),
+             figure("*Figure 1.2 — Roll.*"),
+             figure("*Figure 1.3 — Roll. Data: real OxIOD data.*"),
+             figure("*Figure 1.4 — Roll. Data: the handheld simulator.*", alt="roll on a real walk")]
+    assert caption_problems({"metadata": run, "cells": cells}) == [
+        "cell 1: a caption without 'Data: ...': '*Figure 1.2 — Roll.*'",
+        "cell 2: names real data on a simulated run: 'real OxIOD data'",
+        "cell 3: its typed caption or alt text says 'real'"]
+
+
+def unclosed_toggles(notebook: dict) -> list[str]:
+    """'cell N' for each cell whose source (Markdown, or a ``prose`` template in code) opens a
+    ``<details>`` toggle it does not close: the page would fold everything after it."""
+    return [f"cell {i}" for i, c in enumerate(notebook["cells"])
+            if "".join(c["source"]).count("<details>") != "".join(c["source"]).count("</details>")]
+
+
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_every_solution_toggle_is_closed(path):
+    found = unclosed_toggles(json.loads(path.read_text()))
+    assert not found, f"{path.name}: <details> without </details>: {found}"
+
+
+def test_a_planted_unclosed_toggle_is_found():
+    cells = [{"cell_type": "markdown", "source": "<details>\n<summary>Solution</summary>\n\nx\n\n</details>"},
+             {"cell_type": "code", "source": 'prose(r"""\n<details>\n<summary>Solution</summary>\n\n{x}\n""")'}]
+    assert unclosed_toggles({"cells": cells}) == ["cell 1"]

@@ -69,10 +69,16 @@ class Experiment:
 
     @property
     def source(self) -> str:
-        """The data in a few words, as a caption or a sentence names it: ``"real OxIOD data"``
-        or ``"the simulator standing in for OxIOD"``."""
-        dataset = {**NAMES, "broad": "BROAD"}.get(self.name, self.name)
-        return f"real {dataset} data" if self.data == "real" else f"the simulator standing in for {dataset}"
+        """The data in a few words, as a caption or a sentence names it (:func:`source_of`)."""
+        return source_of(self.name, self.data)
+
+
+def source_of(name: str, data: str) -> str:
+    """How a caption or a sentence names the data of experiment ``name`` (``"oxiod"``, ``"ucs"``,
+    ``"broad"``) read as ``data`` (``"real"`` or ``"simulated"``): ``"real OxIOD data"`` or
+    ``"the simulator standing in for OxIOD"``."""
+    dataset = {**NAMES, "broad": "BROAD"}.get(name, name)
+    return f"real {dataset} data" if data == "real" else f"the simulator standing in for {dataset}"
 
 
 def existing_dir(path: str | os.PathLike[str] | None) -> Path | None:

@@ -33,6 +33,11 @@ class Motions:
     """motion -> its recordings (names unique across motions, e.g. ``"trolley/data2/imu2"``)."""
     note: str
 
+    @property
+    def source(self) -> str:
+        """The data in a few words, as a caption names it (``"real OxIOD data"``, or the simulator)."""
+        return experiments.source_of("oxiod", self.data)
+
 
 def load(data_dir: str | os.PathLike[str] | None = None, *, fast: bool = False, seed: int = 0,
                  verbose: bool = True) -> Motions:
