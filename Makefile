@@ -1,7 +1,8 @@
 # The DANAE book.
 #   make book    -> creates .venv if missing, renders the notebooks' committed outputs (executes nothing),
 #                   writes _build/html/index.html
-#   make test    -> unit tests plus every notebook under nbmake (fast mode), same venv; one torch
+#   make test    -> unit tests plus every notebook under nbmake (fast mode; DANAE_DATA when set) and
+#                   again without data (tests/test_chapters_without_data.py), same venv; one torch
 #                   thread per pytest worker (OMP_NUM_THREADS=1): $(JOBS) workers share the cores,
 #                   each taking whole files, the chapters first (tests/conftest.py orders them)
 #   make execute -> re-executes in place the chapters whose stored outputs are stale (ARGS=--all: every

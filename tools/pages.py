@@ -297,7 +297,7 @@ def timings_markdown(commands: Mapping[str, Any], records: Sequence[tuple[str, M
         f"| `.ci/run` from a fresh clone | {_minutes(commands['ci_run_s'])} | `make test`, then "
         f"`make book` ({ci}) |",
         f"| `make test` (first run: creates `.venv`) | {_minutes(commands['make_test_s'])} | unit "
-        f"tests and every chapter in fast mode on the real data ({tests}) |",
+        f"tests and every chapter in fast mode, on the real data and again without it ({tests}) |",
         f"| `make book` | {_minutes(commands['make_book_s'])} | renders the stored chapters; "
         "executes and trains nothing |",
         f"| `make execute ARGS=\"--all --cold\"` | {total('cold')} | every chapter, every network "
