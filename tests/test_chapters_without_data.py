@@ -21,13 +21,10 @@ from test_notebook_rendering import caption_problems
 
 @pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.stem)
 def test_a_chapter_run_without_data_names_the_simulator_in_its_captions(path, tmp_path):
-    cache = runtime.cache_dir()
-    env = execute.kernel_environment(data_dir=None, cache=cache, fast=True, n_jobs=1)
-    env.update({"MPLBACKEND": execute.INLINE_BACKEND, "PYTHONHASHSEED": "0"})
+    run = execute.execute_book([path], data_dir=None, cache_dir=runtime.cache_dir(), fast=True,
+                               out_dir=tmp_path, timeout=600, progress=False)
     out = tmp_path / path.name
-    execute.execute_notebook(path, out_path=out, env=env, data_dir=None, fast=True, timeout=600,
-                             networks=cache / "fast" if cache is not None else None)
     notebook = json.loads(out.read_text())
-    assert notebook["metadata"]["danae"]["execution"]["data"] == "simulated"
+    assert run.loc[0, "data"] == notebook["metadata"]["danae"]["execution"]["data"] == "simulated"
     problems = caption_problems(notebook) + figure_problems(out)
     assert not problems, f"{path.name} without data:\n" + "\n".join(problems)

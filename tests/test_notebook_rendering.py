@@ -85,6 +85,11 @@ def test_the_executor_writes_what_jupyterlab_saves():
 
 
 # ---- what the HTML page shows of a cell ----------------------------------------------------
+def output_text(output: dict) -> str:
+    """The text an output shows: a stream's, or its ``text/*`` representations joined."""
+    parts = [output.get("text", "")] + [v for k, v in output.get("data", {}).items() if k.startswith("text/")]
+    return "".join("".join(p) if isinstance(p, list) else p for p in parts)
+
 
 def empty_toggles(notebook: dict) -> list[str]:
     """'cell N' for each cell whose input the book folds behind a "Show code cell source"
@@ -94,13 +99,6 @@ def empty_toggles(notebook: dict) -> list[str]:
             if c["cell_type"] == "code" and "hide-input" in c.get("metadata", {}).get("tags", [])
             and not any(not any(k.startswith("application/papermill.record/") for k in o.get("data", {}))
                         for o in c.get("outputs", []))]
-
-
-@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
-def test_no_toggle_folds_a_cell_that_shows_nothing(path):
-    found = empty_toggles(json.loads(path.read_text()))
-    assert not found, (f"{path.name}: hide-input cells with no visible output (an empty toggle "
-                       f"on the page; tag them remove-input): {found}")
 
 
 def test_a_planted_empty_toggle_is_found():
@@ -125,22 +123,10 @@ def long_output_lines(notebook: dict) -> list[str]:
         if c["cell_type"] != "code" or {"remove-output", "remove-cell"} & set(c.get("metadata", {}).get("tags", [])):
             continue
         for o in c.get("outputs", []):
-            data = o.get("data", {})
-            if o.get("output_type") == "stream":
-                text = "".join(o["text"])
-            elif set(data) == {"text/plain"}:
-                text = "".join(data["text/plain"])
-            else:
-                continue
-            found += [f"cell {i}: {len(line)}" for line in text.splitlines() if len(line) > MAX_OUTPUT_LINE]
+            if o.get("output_type") == "stream" or set(o.get("data", {})) == {"text/plain"}:
+                found += [f"cell {i}: {len(line)}" for line in output_text(o).splitlines()
+                          if len(line) > MAX_OUTPUT_LINE]
     return found
-
-
-@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
-def test_no_printed_line_runs_off_its_block(path):
-    found = long_output_lines(json.loads(path.read_text()))
-    assert not found, (f"{path.name}: printed lines longer than {MAX_OUTPUT_LINE} characters (wrap "
-                       f"them where they carry a point): {found}")
 
 
 def test_a_planted_long_output_line_is_found():
@@ -161,18 +147,8 @@ ABSOLUTE_PATH = re.compile(r"(?<![\w.:/])/(?:[\w.-]+/)+[\w.-]*")
 def absolute_paths(notebook: dict) -> list[str]:
     """The absolute paths the stored outputs print: the data folder is named ``<data dir>``
     (``$DANAE_DATA``), whatever machine executed the chapter."""
-    found = []
-    for c in notebook["cells"]:
-        for o in c.get("outputs", []):
-            texts = [o.get("text", "")] + [v for k, v in o.get("data", {}).items() if k.startswith("text/")]
-            found += ABSOLUTE_PATH.findall("".join("".join(t) if isinstance(t, list) else t for t in texts))
-    return found
-
-
-@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
-def test_no_output_names_a_folder_of_the_machine_that_ran_it(path):
-    found = absolute_paths(json.loads(path.read_text()))
-    assert not found, f"{path.name}: outputs print absolute paths: {sorted(set(found))}"
+    return [path for c in notebook["cells"] for o in c.get("outputs", [])
+            for path in ABSOLUTE_PATH.findall(output_text(o))]
 
 
 def test_a_planted_absolute_path_is_found():
@@ -214,12 +190,6 @@ def caption_problems(notebook: dict) -> list[str]:
     return problems
 
 
-@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
-def test_every_caption_names_the_data_its_run_found(path):
-    problems = caption_problems(json.loads(path.read_text()))
-    assert not problems, f"{path.name}:\n" + "\n".join(problems)
-
-
 def test_planted_caption_defects_are_found():
     def figure(caption: str, alt: str = "a plot of the roll error over one minute") -> dict:
         return {"cell_type": "code", "metadata": {"mystnb": {"image": {"alt": alt}}},
@@ -243,13 +213,24 @@ def unclosed_toggles(notebook: dict) -> list[str]:
             if "".join(c["source"]).count("<details>") != "".join(c["source"]).count("</details>")]
 
 
-@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
-def test_every_solution_toggle_is_closed(path):
-    found = unclosed_toggles(json.loads(path.read_text()))
-    assert not found, f"{path.name}: <details> without </details>: {found}"
-
-
 def test_a_planted_unclosed_toggle_is_found():
     cells = [{"cell_type": "markdown", "source": "<details>\n<summary>Solution</summary>\n\nx\n\n</details>"},
              {"cell_type": "code", "source": 'prose(r"""\n<details>\n<summary>Solution</summary>\n\n{x}\n""")'}]
     assert unclosed_toggles({"cells": cells}) == ["cell 1"]
+
+
+PAGE_CHECKS = {
+    "hide-input cells with no visible output (an empty toggle; tag them remove-input)": empty_toggles,
+    f"printed lines longer than {MAX_OUTPUT_LINE} characters (wrap them)": long_output_lines,
+    "outputs that print absolute paths": absolute_paths,
+    "captions that do not name the data their run found": caption_problems,
+    "<details> without </details>": unclosed_toggles,
+}
+"""What a reader would meet on a chapter's page, each found by its function above."""
+
+
+@pytest.mark.parametrize("what", PAGE_CHECKS)
+@pytest.mark.parametrize("path", NOTEBOOKS, ids=lambda p: p.name)
+def test_a_chapter_page_has_none_of_these_defects(path, what):
+    found = PAGE_CHECKS[what](json.loads(path.read_text()))
+    assert not found, f"{path.name}: {what}:\n" + "\n".join(found)
