@@ -162,7 +162,7 @@ def scheduler(value: str | None = None) -> str | None:
     return raw
 
 
-FAST_MAX_STEPS = 50
+FAST_MAX_STEPS = 10
 """Fast mode: cap on optimiser steps per network."""
 FAST_EPOCHS = 2
 """Fast mode: cap on the epochs per network."""

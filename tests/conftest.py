@@ -11,19 +11,25 @@ from scipy.spatial.transform import Rotation
 
 OXIOD_KS = (2, 3, 4, 7)
 SYNTH_ROWS = 200
+WITHOUT_DATA = "test_chapters_without_data.py"
+"""The file that runs every chapter a second time, without data."""
 
 
 def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
-    """Run the chapters first, the last chapter first (later chapters build on the earlier ones
-    and cost the most), then the unit tests in their usual order.
+    """Run the second run of the chapters, without data (:data:`WITHOUT_DATA`, the longest
+    file), first; then the chapters, the last chapter first (later chapters build on the earlier
+    ones and cost the most); then the unit tests in their usual order.
 
     ``make test`` hands whole files to its workers in this order (``--dist loadfile
-    --no-loadscope-reorder``: xdist would otherwise put the files with the most tests first), so the
-    two longest chapters start at once on two workers and the short unit-test files fill the
-    gaps, instead of two long chapters queueing on one worker while the other idles.
+    --no-loadscope-reorder``: xdist would otherwise put the files with the most tests first), so
+    one worker runs the chapters without data while the other runs them with data, and the short
+    unit-test files fill the gaps, instead of a long file starting last on one worker while the
+    other idles.
     """
     chapters = sorted((i for i in items if i.path.suffix == ".ipynb"), key=lambda i: i.path.name, reverse=True)
-    items[:] = chapters + [i for i in items if i.path.suffix != ".ipynb"]
+    without_data = [i for i in items if i.path.name == WITHOUT_DATA]
+    rest = [i for i in items if i.path.suffix != ".ipynb" and i.path.name != WITHOUT_DATA]
+    items[:] = without_data + chapters + rest
 
 
 def synthetic_oxiod(n: int = SYNTH_ROWS, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

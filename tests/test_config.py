@@ -1,3 +1,6 @@
+import re
+from pathlib import Path
+
 import pytest
 
 from danae_lite.runtime import data_dir, fast_mode
@@ -79,4 +82,15 @@ def test_fast_mode_caps_steps_and_epochs_only():
     fast = RunSettings(fast=True).train_config(base)
     # validation keeps its schedule (ten checks per epoch): chapter 3's hand-written loop repeats it
     assert (fast.epochs, fast.max_steps, fast.val_every) == (FAST_EPOCHS, FAST_MAX_STEPS, None)
-    assert RunSettings(fast=True).train_config(TrainConfig(max_steps=40)).max_steps == 40
+    assert RunSettings(fast=True).train_config(TrainConfig(max_steps=3)).max_steps == 3
+    assert RunSettings(fast=True).train_config(TrainConfig(max_steps=400)).max_steps == FAST_MAX_STEPS
+
+
+def test_the_pages_state_the_fast_mode_cap():
+    from danae_lite.runtime import FAST_MAX_STEPS
+
+    root = Path(__file__).resolve().parents[1]
+    for page in ("README.md", "book/performance.md"):
+        text = " ".join((root / page).read_text(encoding="utf-8").split())
+        stated = re.findall(r"at most (\d+) optimiser steps per network", text)
+        assert stated and set(stated) == {str(FAST_MAX_STEPS)}, (page, stated)

@@ -10,7 +10,7 @@ import re
 import pytest
 
 from test_book_references import CODE, SOURCES, at, blank, texts
-from test_notebook_prose import NOTEBOOKS
+from test_notebook_prose import NOTEBOOKS, ROOT
 
 # ---- equations and notebook metadata -------------------------------------------------------
 
@@ -219,12 +219,90 @@ def test_a_planted_unclosed_toggle_is_found():
     assert unclosed_toggles({"cells": cells}) == ["cell 1"]
 
 
+# ---- figure labels at phone width -------------------------------------------------------------
+
+FIGURE_CSS = ROOT / "book" / "_static" / "figures.css"
+MIN_LABEL_PX = 9.0
+"""Smallest height [CSS px] of a figure's axis and tick labels on a phone, below which they
+cannot be read (a 10 pt label on a 990 px figure shrunk to a 350 px column is about 5 px)."""
+
+
+def figure_min_width_px(css: str) -> float:
+    """The width [CSS px] below which the book's stylesheet does not shrink a chapter's figure."""
+    m = re.search(r"div\.cell_output img\s*\{[^}]*min-width:\s*(\d+)px", css)
+    if not m:
+        raise AssertionError(f"{FIGURE_CSS.name}: no 'div.cell_output img {{ min-width: ...px }}' rule")
+    return float(m[1])
+
+
+def label_px(png_width: int, *, min_width: float) -> float:
+    """Height [CSS px] of text drawn at the book's font size (``plots.use_style``) in a figure
+    ``png_width`` pixels wide, shown ``min_width`` px wide on a phone."""
+    import matplotlib as mpl
+
+    from danae_lite import plots
+
+    with mpl.rc_context():
+        plots.use_style()
+        points, dpi = float(mpl.rcParams["font.size"]), float(mpl.rcParams["figure.dpi"])
+    return points * dpi / 72 * min_width / png_width
+
+
+def small_figure_labels(notebook: dict, *, min_width: float | None = None) -> list[str]:
+    """'cell N: <px>' for each stored figure whose labels would be under :data:`MIN_LABEL_PX` on
+    a phone, where the stylesheet shows it ``min_width`` px wide (read from ``figures.css``)."""
+    import base64
+    import struct
+
+    width = figure_min_width_px(FIGURE_CSS.read_text()) if min_width is None else min_width
+    found = []
+    for i, c in enumerate(notebook["cells"]):
+        for o in c.get("outputs", []):
+            png = o.get("data", {}).get("image/png")
+            if png:
+                (png_width,) = struct.unpack(">I", base64.b64decode(png)[16:20])
+                if (px := label_px(png_width, min_width=width)) < MIN_LABEL_PX:
+                    found.append(f"cell {i}: {png_width} px wide, labels {px:.1f} px")
+    return found
+
+
+def test_a_planted_wide_figure_is_found():
+    import base64
+    import io
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    def figure(width_in: float) -> dict:
+        fig = plt.figure(figsize=(width_in, 2), dpi=100)
+        buf = io.BytesIO()
+        fig.savefig(buf, format="png", dpi=100)
+        plt.close(fig)
+        png = base64.b64encode(buf.getvalue()).decode()
+        return {"cell_type": "code", "outputs": [{"output_type": "display_data", "data": {"image/png": png}}]}
+
+    assert small_figure_labels({"cells": [figure(9), figure(13)]}, min_width=720) == [
+        "cell 1: 1300 px wide, labels 7.7 px"]
+
+
+def test_the_book_loads_the_figure_stylesheet():
+    import yaml
+
+    sphinx = yaml.safe_load((ROOT / "_config.yml").read_text())["sphinx"]["config"]
+    assert FIGURE_CSS.name in sphinx["html_css_files"]
+    assert any((ROOT / d / FIGURE_CSS.name) == FIGURE_CSS for d in sphinx["html_static_path"])
+    assert figure_min_width_px(FIGURE_CSS.read_text()) >= 600
+
+
 PAGE_CHECKS = {
     "hide-input cells with no visible output (an empty toggle; tag them remove-input)": empty_toggles,
     f"printed lines longer than {MAX_OUTPUT_LINE} characters (wrap them)": long_output_lines,
     "outputs that print absolute paths": absolute_paths,
     "captions that do not name the data their run found": caption_problems,
     "<details> without </details>": unclosed_toggles,
+    f"figures whose labels are under {MIN_LABEL_PX:g} px on a phone (narrow the figure)": small_figure_labels,
 }
 """What a reader would meet on a chapter's page, each found by its function above."""
 
