@@ -24,22 +24,22 @@ import time
 from pathlib import Path
 
 ROOT = Path(__file__).resolve().parents[1]
+sys.path.insert(0, str(ROOT))
+from tools import conditions  # noqa: E402  (run as a script from anywhere)
 
 
 def cpu_label() -> str:
     """'<model>, <n> cores, <AVX-512|AVX2>' from /proc/cpuinfo."""
-    model, flags = "unknown CPU", set()
+    flags: set[str] = set()
     try:
         for line in Path("/proc/cpuinfo").read_text(encoding="utf-8", errors="replace").splitlines():
             key, _, value = line.partition(":")
-            if key.strip() == "model name":
-                model = value.strip()
-            elif key.strip() == "flags":
+            if key.strip() == "flags":
                 flags = set(value.split())
     except OSError:
         pass
     isa = "AVX-512" if "avx512f" in flags else "AVX2" if "avx2" in flags else "neither AVX2 nor AVX-512"
-    return f"{model}, {os.cpu_count()} cores, {isa}"
+    return f"{conditions.cpu_model()}, {os.cpu_count()} cores, {isa}"
 
 
 def parse_log(text: str) -> dict[str, int]:

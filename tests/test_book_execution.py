@@ -322,6 +322,12 @@ def test_a_run_counts_the_networks_it_trained_and_loaded(tmp_path):
     warm_nb = nbformat.read(tmp_path / "b" / "nets.ipynb", as_version=4)
     record = execution_record(warm_nb)
     assert (record["networks_trained"], record["networks_cached"]) == (0, 2)
+    # under which conditions: the kernel's environment (fast mode, one job, OMP_NUM_THREADS
+    # as make test sets it or the machine's default) and the load around the run
+    held = record["conditions"]
+    assert set(held) == {"cpu", "cores", "onednn_isa", "torch_threads", "jobs", "load_start", "load_end"}
+    assert held["jobs"] == 1 and held["cores"] >= 1 and held["onednn_isa"] and held["cpu"]
+    assert held["load_start"] >= 0 and held["load_end"] >= 0
     # the cold run's record is kept beside the warm one: the chapter can state both
     cold = execute.cold_record(warm_nb)
     assert cold == execution_record(nbformat.read(tmp_path / "a" / "nets.ipynb", as_version=4))
@@ -354,3 +360,41 @@ def test_kept_records_of_other_code_or_data_are_dropped():
     other_data = {**new_code, "data_sha256": "e", "networks_trained": 6, "networks_cached": 0}
     execute.keep_run(nb, other_data, cold=True)
     assert nb["metadata"]["danae"] == {"cold_execution": other_data}
+
+
+# ---- the conditions a run's numbers hold under ---------------------------------------------
+
+def test_the_cpu_model_comes_from_cpuinfo():
+    from tools.conditions import cpu_model
+
+    assert cpu_model("processor\t: 0\nmodel name\t: AMD EPYC 7B13\nflags\t: avx2\n") == "AMD EPYC 7B13"
+    assert cpu_model("processor\t: 0\n")  # what platform says, or "unknown CPU"
+
+
+def test_the_probe_output_is_parsed_or_refused():
+    from tools.conditions import parse_probe
+
+    out = ("onednn_verbose,v1,info,oneDNN v3.12.0 (commit 80afa71)\n"
+           "onednn_verbose,v1,info,cpu,runtime:OpenMP,nthr:2\n"
+           "onednn_verbose,v1,info,cpu,isa:Intel AVX-512 with AVX512BW, AVX512VL, and AVX512DQ extensions\n"
+           "torch_threads 2\n")
+    assert parse_probe(out) == {"onednn_isa": "Intel AVX-512 with AVX512BW, AVX512VL, and AVX512DQ extensions",
+                                "torch_threads": 2}
+    with pytest.raises(ValueError, match="no instruction set or thread count"):
+        parse_probe("torch_threads 2\n")
+
+
+def test_the_probe_sees_the_kernels_environment():
+    """The probe runs in the environment it is given: a thread count and an instruction-set cap
+    set there are what it reports."""
+    import os
+
+    from tools.conditions import probe
+
+    cpuinfo = Path("/proc/cpuinfo")
+    if not cpuinfo.exists() or "avx2" not in cpuinfo.read_text(errors="replace"):
+        pytest.skip("no AVX2 on this CPU (or no /proc/cpuinfo): oneDNN cannot be capped at it")
+    env = {**os.environ, "OMP_NUM_THREADS": "1", "ONEDNN_MAX_CPU_ISA": "AVX2", "DANAE_JOBS": "3"}
+    held = probe(env)
+    assert (held["torch_threads"], held["jobs"]) == (1, 3)
+    assert held["onednn_isa"] == "Intel AVX2"

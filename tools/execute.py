@@ -28,6 +28,7 @@ from typing import TYPE_CHECKING, Any
 
 from danae_lite.runtime import (CACHE_ENV, CACHE_GB_ENV, DATA_ENV, DEFAULT_CACHE_GB, FAST_ENV,
                                 JOBS_ENV, SCHEDULER_ENV, RunSettings)
+from tools import conditions as machine
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -244,7 +245,7 @@ def write_pages(root: Path, folder: Path) -> None:
 
 def stamp(nb: MutableMapping[str, Any], *, seconds: float, data_dir: str | os.PathLike[str] | None,
           fast: bool, executed: datetime | None = None, networks: tuple[int, int] | None = None,
-          data_sha256: str = "") -> dict[str, Any]:
+          data_sha256: str = "", conditions: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Write the record of a run into ``nb.metadata["danae"]["execution"]`` and return it.
 
     Parameters
@@ -265,14 +266,18 @@ def stamp(nb: MutableMapping[str, Any], *, seconds: float, data_dir: str | os.Pa
         found none in the cache ran cold, one that trained none ran warm.
     data_sha256
         :func:`data_fingerprint` of ``data_dir`` ("" for the simulator).
+    conditions
+        Under which conditions the run's numbers hold (:func:`tools.conditions.probe`: CPU,
+        oneDNN's instruction set, torch threads, jobs; and the machine's load at the start and
+        end of the run), when known.
 
     Returns
     -------
     dict
         The record: ``code_sha256`` (:func:`code_hash`), ``danae_lite_version``, ``data``
         (``"real"`` or ``"simulated"``), ``data_dir``, ``data_sha256``, ``fast``, ``seconds``, ``executed``,
-        ``python`` and ``torch`` versions, and with ``networks`` given ``networks_trained`` and
-        ``networks_cached``.
+        ``python`` and ``torch`` versions, with ``networks`` given ``networks_trained`` and
+        ``networks_cached``, and with ``conditions`` given ``conditions``.
     """
     from importlib.metadata import PackageNotFoundError, version
 
@@ -297,6 +302,8 @@ def stamp(nb: MutableMapping[str, Any], *, seconds: float, data_dir: str | os.Pa
     }
     if networks is not None:
         record["networks_trained"], record["networks_cached"] = (int(n) for n in networks)
+    if conditions is not None:
+        record["conditions"] = dict(conditions)
     metadata = nb.setdefault("metadata", {})
     metadata.setdefault("danae", {})["execution"] = record
     return record
@@ -343,7 +350,8 @@ def _write_atomically(nb: Any, target: Path) -> None:
 
 def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLike[str],
                      env: Mapping[str, str], data_dir: Path | None, fast: bool, timeout: float | None,
-                     networks: Path | None = None, data_sha256: str = "", cold: bool = False) -> dict[str, Any]:
+                     networks: Path | None = None, data_sha256: str = "", cold: bool = False,
+                     conditions: Mapping[str, Any] | None = None) -> dict[str, Any]:
     """Execute one notebook in a fresh ``python3`` kernel and write it, with its record, to ``out_path``.
 
     The kernel runs in the notebook's own folder (as Jupyter Book runs it) with exactly the
@@ -372,6 +380,9 @@ def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLik
         The run started from an empty cache (``--cold``): its record is kept a second time,
         as the chapter's :func:`cold_record`, which later warm runs leave in place (a run that
         is not cold and trains no network is kept as its :func:`warm_record`, see :func:`keep_run`).
+    conditions
+        :func:`tools.conditions.probe` of ``env``, recorded with the machine's load at the
+        start and end of the run; None: not recorded.
 
     Returns
     -------
@@ -404,6 +415,7 @@ def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLik
                             resources={"metadata": {"path": str(path.parent)}},
                             on_cell_start=on_cell_start)
     before, started = _network_files(networks), time.time()
+    load_start = machine.load()
     start = time.perf_counter()
     try:
         client.execute(cwd=str(path.parent), env=kernel_env)
@@ -417,7 +429,9 @@ def execute_notebook(path: str | os.PathLike[str], *, out_path: str | os.PathLik
         raise BookExecutionError(f"{path.name}: {where} failed: {detail}") from exc
     seconds = time.perf_counter() - start
     counts = _network_counts(before, _network_files(networks), started) if networks is not None else None
-    record = stamp(nb, seconds=seconds, data_dir=data_dir, fast=fast, networks=counts, data_sha256=data_sha256)
+    held = None if conditions is None else {**conditions, "load_start": load_start, "load_end": machine.load()}
+    record = stamp(nb, seconds=seconds, data_dir=data_dir, fast=fast, networks=counts, data_sha256=data_sha256,
+                   conditions=held)
     keep_run(nb, record, cold=cold)
     _write_atomically(nb, out_path)
     return record
@@ -558,13 +572,14 @@ def execute_book(notebooks: Sequence[str | os.PathLike[str]], *, data_dir: str |
         if progress:
             print(f"writing executed copies to {out}; the notebooks in place are left unchanged")
     fingerprint = data_fingerprint(data)
+    held = machine.probe(env)  # once: every kernel of this run gets this environment
     rows: list[dict[str, Any]] = []
     bar = tqdm(paths, desc="chapters", unit="nb", disable=not progress, leave=False)
     for path in bar:
         bar.set_postfix_str(path.stem)
         target = out / path.name if out is not None else path
         record = execute_notebook(path, out_path=target, env=env, data_dir=data, fast=fast, timeout=timeout,
-                                  networks=networks, data_sha256=fingerprint, cold=cold)
+                                  networks=networks, data_sha256=fingerprint, cold=cold, conditions=held)
         rows.append(_row(path, target, record, data=data, fast=fast))
         if progress:
             bar.write(_one_line(rows[-1]))
