@@ -4,7 +4,8 @@
 #   make test    -> unit tests plus every notebook under nbmake (fast mode; DANAE_DATA when set) and
 #                   again without data (tests/test_chapters_without_data.py), same venv; one torch
 #                   thread per pytest worker (OMP_NUM_THREADS=1): $(JOBS) workers share the cores,
-#                   each taking whole files, the chapters first (tests/conftest.py orders them)
+#                   each taking whole files, the run without data first, then the chapters
+#                   (tests/conftest.py orders them)
 #   make execute -> re-executes in place the chapters whose stored outputs are stale (ARGS=--all: every
 #                   chapter; ARGS="--only 03_danae": that one; ARGS=--cold: every network trained anew),
 #                   in full mode on real data, storing the outputs that `make book` renders

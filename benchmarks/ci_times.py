@@ -30,16 +30,14 @@ from tools import conditions  # noqa: E402  (run as a script from anywhere)
 
 def cpu_label() -> str:
     """'<model>, <n> cores, <AVX-512|AVX2>' from /proc/cpuinfo."""
-    flags: set[str] = set()
     try:
-        for line in Path("/proc/cpuinfo").read_text(encoding="utf-8", errors="replace").splitlines():
-            key, _, value = line.partition(":")
-            if key.strip() == "flags":
-                flags = set(value.split())
+        cpuinfo = Path("/proc/cpuinfo").read_text(encoding="utf-8", errors="replace")
     except OSError:
-        pass
+        cpuinfo = ""
+    flags = next((set(value.split()) for key, _, value in (line.partition(":") for line in cpuinfo.splitlines())
+                  if key.strip() == "flags"), set())
     isa = "AVX-512" if "avx512f" in flags else "AVX2" if "avx2" in flags else "neither AVX2 nor AVX-512"
-    return f"{conditions.cpu_model()}, {os.cpu_count()} cores, {isa}"
+    return f"{conditions.cpu_model(cpuinfo)}, {os.cpu_count()} cores, {isa}"
 
 
 def parse_log(text: str) -> dict[str, int]:

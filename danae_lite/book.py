@@ -22,9 +22,9 @@ prose, so that the number reads the same in the HTML book and in JupyterLab:
 
 and :func:`glue_table`, which glues every value of a table (a verdict table of
 :mod:`danae_lite.evaluate.comparison`) by one call, and :func:`show_figure`, which shows a
-figure with its numbered caption and the data it is drawn from as outputs of the cell, so that the HTML book and JupyterLab
-both show the caption under the figure (its alt text is the cell's ``mystnb.image.alt``
-metadata).
+figure with its numbered caption and the data it is drawn from as outputs of the cell, so
+that the HTML book and JupyterLab both show the caption under the figure (its alt text is the
+cell's ``mystnb.image.alt`` metadata).
 
 The command that re-executes the chapters and stores their outputs is
 :mod:`tools.execute` (``make execute``); the book only renders those outputs.

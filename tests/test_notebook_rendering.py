@@ -235,17 +235,16 @@ def figure_min_width_px(css: str) -> float:
     return float(m[1])
 
 
-def label_px(png_width: int, *, min_width: float) -> float:
-    """Height [CSS px] of text drawn at the book's font size (``plots.use_style``) in a figure
-    ``png_width`` pixels wide, shown ``min_width`` px wide on a phone."""
+def text_px() -> float:
+    """Height [px] of text at the book's font size in a stored figure (``plots.use_style``:
+    ``font.size`` points at ``figure.dpi``), at the figure's own width."""
     import matplotlib as mpl
 
     from danae_lite import plots
 
     with mpl.rc_context():
         plots.use_style()
-        points, dpi = float(mpl.rcParams["font.size"]), float(mpl.rcParams["figure.dpi"])
-    return points * dpi / 72 * min_width / png_width
+        return float(mpl.rcParams["font.size"]) * float(mpl.rcParams["figure.dpi"]) / 72
 
 
 def small_figure_labels(notebook: dict, *, min_width: float | None = None) -> list[str]:
@@ -255,13 +254,14 @@ def small_figure_labels(notebook: dict, *, min_width: float | None = None) -> li
     import struct
 
     width = figure_min_width_px(FIGURE_CSS.read_text()) if min_width is None else min_width
+    natural = text_px()
     found = []
     for i, c in enumerate(notebook["cells"]):
         for o in c.get("outputs", []):
             png = o.get("data", {}).get("image/png")
             if png:
                 (png_width,) = struct.unpack(">I", base64.b64decode(png)[16:20])
-                if (px := label_px(png_width, min_width=width)) < MIN_LABEL_PX:
+                if (px := natural * width / png_width) < MIN_LABEL_PX:
                     found.append(f"cell {i}: {png_width} px wide, labels {px:.1f} px")
     return found
 
