@@ -86,11 +86,18 @@ def test_fast_mode_caps_steps_and_epochs_only():
     assert RunSettings(fast=True).train_config(TrainConfig(max_steps=400)).max_steps == FAST_MAX_STEPS
 
 
-def test_the_pages_state_the_fast_mode_cap():
+def test_the_pages_and_chapters_state_the_fast_mode_cap():
+    import json
+
     from danae_lite.runtime import FAST_MAX_STEPS
 
     root = Path(__file__).resolve().parents[1]
-    for page in ("README.md", "book/performance.md"):
-        text = " ".join((root / page).read_text(encoding="utf-8").split())
-        stated = re.findall(r"at most (\d+) optimiser steps per network", text)
-        assert stated and set(stated) == {str(FAST_MAX_STEPS)}, (page, stated)
+    texts = {page: (root / page).read_text(encoding="utf-8") for page in ("README.md", "book/performance.md")}
+    for path in sorted((root / "notebooks").glob("0*.ipynb")):
+        cells = json.loads(path.read_text(encoding="utf-8"))["cells"]
+        texts[path.name] = "\n".join("".join(c["source"]) for c in cells if c["cell_type"] == "markdown")
+    stated = {where: re.findall(r"at most (\d+) optimiser steps", " ".join(text.split()))
+              for where, text in texts.items()}
+    assert stated["README.md"] and stated["book/performance.md"] and stated["04_reproduce_paper.ipynb"]
+    wrong = {where: found for where, found in stated.items() if set(found) - {str(FAST_MAX_STEPS)}}
+    assert not wrong, f"fast mode caps each network at {FAST_MAX_STEPS} steps: {wrong}"
